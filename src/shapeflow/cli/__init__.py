@@ -1,0 +1,69 @@
+"""The ``shapeflow`` command line.
+
+Each subcommand lives in its own module of this package with a
+``register(subparsers)`` function; errors become one line on stderr and exit
+code 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from ..errors import OptionalDependencyError, ShapeflowError
+
+#: subcommand modules, in the order ``--help`` lists them
+COMMANDS = ["info", "flow", "subdivide"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .. import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="shapeflow",
+        description="Smooth and enhance polygon meshes (triangles, quads, n-gons) "
+        "with the hybrid quad/triangle Laplace-Beltrami operator.",
+        epilog="Mesh arguments accept OBJ, PLY (ASCII/binary) and OFF files, or "
+        "'example:NAME' for a mesh bundled with shapeflow (example:spot, example:spot_cage).",
+    )
+    parser.add_argument("--version", action="version", version=f"shapeflow {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        try:
+            mod = importlib.import_module(f".{name}", __name__)
+        except ModuleNotFoundError as exc:  # a command whose module is not written yet
+            if exc.name == f"{__name__}.{name}":
+                continue
+            raise
+        mod.register(sub)
+    return parser
+
+
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help(sys.stderr)
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except (ShapeflowError, OptionalDependencyError) as exc:
+        print(f"shapeflow {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:
+        where = f" '{exc.filename}'" if getattr(exc, "filename", None) else ""
+        print(f"shapeflow {args.command}: error:{where} {exc.strerror or exc}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print(f"shapeflow {args.command}: error: out of memory", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"shapeflow {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

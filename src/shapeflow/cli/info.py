@@ -1,0 +1,53 @@
+"""``shapeflow info MESH``: counts, boundary, manifoldness, bounding box, warnings."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._common import load_mesh_arg
+
+
+def register(sub) -> None:
+    p = sub.add_parser("info", help="describe a mesh: face sizes, boundary loops, manifoldness, warnings",
+                       description="Describe a mesh: counts by face size, boundary loops, "
+                       "manifoldness, bounding box and anything suspicious.")
+    p.add_argument("mesh", help="mesh file (OBJ/PLY/OFF) or example:NAME")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    mesh = load_mesh_arg(args.mesh)
+    print(describe(mesh, name=args.mesh))
+    return 0
+
+
+def describe(mesh, name: str = "mesh") -> str:
+    t = mesh.topology
+    lines = [f"{name}"]
+    lines.append(f"  vertices        {mesh.n_vertices}")
+    by = mesh.face_count_by_size()
+    label = {3: "triangles", 4: "quads"}
+    parts = [f"{c} {label.get(s, f'{s}-gons')}" for s, c in by.items()]
+    lines.append(f"  faces           {mesh.n_faces} ({', '.join(parts) if parts else 'none'})")
+    lines.append(f"  edges           {t.n_edges}")
+    ncomp = t.vertex_components[0] - int(np.count_nonzero(t.vertex_corner_count == 0))
+    lines.append(f"  components      {ncomp}")
+    lines.append(f"  euler char.     {t.euler_characteristic}")
+    nb = int(t.boundary_edge_mask.sum())
+    if nb:
+        lines.append(f"  boundary        {t.boundary_loop_count} loop(s), {nb} edges, {t.boundary_vertices.size} vertices")
+    else:
+        lines.append("  boundary        none (closed)")
+    d = mesh.diagnostics()
+    manifold = d.nonmanifold_edges == 0 and d.nonmanifold_vertices == 0
+    lines.append(f"  manifold        {'yes' if manifold else 'no'}")
+    lines.append(f"  oriented        {'yes' if d.inconsistent_orientation_edges == 0 else 'no'}")
+    lo, hi = mesh.bounding_box
+    fmt = lambda a: "(" + ", ".join(f"{x:.6g}" for x in a) + ")"  # noqa: E731
+    lines.append(f"  bounding box    {fmt(lo)} .. {fmt(hi)}, diagonal {mesh.diagonal:.6g}")
+    if mesh.attributes:
+        lines.append(f"  attributes      {', '.join(mesh.attributes)}")
+    warnings = d.warnings()
+    for w in warnings:
+        lines.append(f"  warning: {w}")
+    return "\n".join(lines)

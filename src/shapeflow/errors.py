@@ -1,0 +1,31 @@
+"""Exception types.
+
+Every error shapeflow raises on bad input is a :class:`ValueError` subclass, so
+``except ValueError`` catches all of them; the message names the offending
+shape, index, file or line.
+"""
+
+from __future__ import annotations
+
+
+class ShapeflowError(ValueError):
+    """Base class of every input error raised by shapeflow."""
+
+
+class MeshError(ShapeflowError):
+    """A mesh (in memory or in a file) is malformed."""
+
+
+class ParameterError(ShapeflowError):
+    """A parameter (λ, iterations, weights, options...) is out of its domain."""
+
+
+class OptionalDependencyError(ImportError):
+    """An optional feature was used without its extra installed."""
+
+    def __init__(self, module: str, extra: str, feature: str):
+        super().__init__(
+            f"{feature} needs the optional package '{module}': "
+            f"pip install 'shapeflow[{extra}]'"
+        )
+        self.extra = extra

@@ -1,0 +1,123 @@
+"""Per-element geometry: triangle cotangents and areas, polygon areas, volume.
+
+Pure, vectorised functions of positions and index arrays; no sparse assembly
+here (that lives in :mod:`shapeflow.operators`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = [
+    "triangle_cotangents",
+    "face_vector_areas",
+    "signed_volume",
+    "vertex_normals",
+    "mean_edge_length",
+]
+
+
+def triangle_cotangents(vertices: np.ndarray, tris: np.ndarray):
+    """Cotangents of the three angles of each triangle, and twice its area.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float64
+    tris : (T, 3) int vertex indices
+
+    Returns
+    -------
+    cot : (T, 3) float64
+        ``cot[t, k]`` is the cotangent of the angle at corner ``k`` of
+        triangle ``t`` (opposite the pair of the other two corners).  Rows of
+        triangles with zero area are 0 (never inf or NaN).
+    dbl_area : (T,) float64
+        ``|e1 × e2|`` = twice the triangle area.
+    sq_len : (T, 3) float64
+        Squared length of the edge opposite each corner.
+    """
+    p0 = vertices[tris[:, 0]]
+    p1 = vertices[tris[:, 1]]
+    p2 = vertices[tris[:, 2]]
+    e0 = p2 - p1  # opposite corner 0
+    e1 = p0 - p2  # opposite corner 1
+    e2 = p1 - p0  # opposite corner 2
+    cr = np.cross(e2, -e1)
+    dbl = np.sqrt(np.einsum("ij,ij->i", cr, cr))
+    dots = np.empty((tris.shape[0], 3))
+    dots[:, 0] = -np.einsum("ij,ij->i", e1, e2)
+    dots[:, 1] = -np.einsum("ij,ij->i", e2, e0)
+    dots[:, 2] = -np.einsum("ij,ij->i", e0, e1)
+    sq = np.empty((tris.shape[0], 3))
+    sq[:, 0] = np.einsum("ij,ij->i", e0, e0)
+    sq[:, 1] = np.einsum("ij,ij->i", e1, e1)
+    sq[:, 2] = np.einsum("ij,ij->i", e2, e2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        cot = dots / dbl[:, None]
+    cot[~(dbl > 0)] = 0.0
+    return cot, dbl, sq
+
+
+def face_vector_areas(mesh) -> np.ndarray:
+    """(m, 3) vector area of every polygon (½ Σ (v_k − v_0) × (v_{k+1} − v_0)).
+
+    Its length is the area of a planar polygon; it is translation-exact
+    because it is computed relative to each face's first corner.
+    """
+    t = mesh.topology
+    v = mesh.vertices
+    fi = t.face_indices
+    first = v[fi[t.face_offsets[:-1]]]
+    base = np.repeat(first, t.face_sizes, axis=0)
+    a = v[fi] - base
+    b = v[fi[t.corner_next]] - base
+    if t.n_faces == 0:
+        return np.zeros((0, 3))
+    # every face has >= 3 corners, so no segment is empty
+    return 0.5 * np.add.reduceat(np.cross(a, b), t.face_offsets[:-1], axis=0)
+
+
+def signed_volume(mesh, vertices: np.ndarray | None = None, center: np.ndarray | None = None) -> float:
+    """Signed enclosed volume: Σ over fan triangles of det(a−c, b−c, d−c)/6.
+
+    Each face is fan-triangulated from its first corner.  For a closed,
+    consistently oriented mesh the result does not depend on ``center``
+    (default: the vertex centroid); outward orientation gives a positive value.
+    """
+    t = mesh.topology
+    v = mesh.vertices if vertices is None else vertices
+    if t.n_faces == 0:
+        return 0.0
+    c = v.mean(axis=0) if center is None else np.asarray(center, dtype=np.float64)
+    fi = t.face_indices
+    first_corner = np.repeat(t.face_offsets[:-1], t.face_sizes)
+    # fan triangles (first, k, k+1) for every corner k that is neither the first nor the last
+    k = np.arange(t.n_corners)
+    nxt = t.corner_next
+    use = (k != first_corner) & (nxt != first_corner)
+    a = v[fi[first_corner[use]]] - c
+    b = v[fi[k[use]]] - c
+    d = v[fi[nxt[use]]] - c
+    return float(np.einsum("ij,ij->", a, np.cross(b, d)) / 6.0)
+
+
+def vertex_normals(mesh, vertices: np.ndarray | None = None) -> np.ndarray:
+    """Unit area-weighted vertex normals ((0,0,0) where undefined)."""
+    t = mesh.topology
+    v = mesh.vertices if vertices is None else vertices
+    fa = face_vector_areas(mesh if vertices is None else mesh.with_vertices(v))
+    per_corner = np.repeat(fa, t.face_sizes, axis=0)
+    nrm = np.stack([np.bincount(t.face_indices, per_corner[:, k], minlength=v.shape[0]) for k in range(3)], axis=1)
+    ln = np.linalg.norm(nrm, axis=1)
+    ok = ln > 0
+    nrm[ok] /= ln[ok, None]
+    return nrm
+
+
+def mean_edge_length(mesh, vertices: np.ndarray | None = None) -> float:
+    """Mean length of the unique edges (0 for a mesh without faces)."""
+    e = mesh.topology.edges
+    if e.size == 0:
+        return 0.0
+    v = mesh.vertices if vertices is None else vertices
+    return float(np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1).mean())
