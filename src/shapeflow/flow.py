@@ -1,0 +1,538 @@
+"""Implicit curvature flow: smoothing (λ > 0) and shape enhancement (λ < 0), eq. 11.
+
+One step, per NOTES.md (the printed minus sign of eq. 11 is a typo):
+
+    (I + |λ| W_p L) V' = V        L = I − D⁻¹W (eq. 10) or (D − W)/(2A) (eq. 9)
+    V ← V + sign(λ) (V' − V)
+
+so λ > 0 is a backward-Euler smoothing step and λ < 0 moves every vertex by
+the same displacement the other way.  W_p = diag(vertex weights in [0, 1]):
+weight 0 leaves a vertex where it is.
+
+The system is never solved in that non-symmetric form.  Rows are scaled by
+``W_p⁻¹ M / |λ|`` (M = D for the normalised operator, 2A for eq. 9), giving
+the symmetric positive definite
+
+    (C + D − W) V' = C V,      C = diag(m_i / (|λ| w_i)),
+
+restricted to the free vertices (fixed ones — weight 0, locked, or boundary —
+move to the right-hand side).  Boundary vertices of open meshes are solved
+first, with the scale-dependent umbrella operator (weights 1/|e_ij|) and their
+own factor λ_b and sign, then the interior.
+
+Two modes
+---------
+paper (default, ``compat=None``)
+    ``scheme="tqlbo"`` weights (triangles 1×, quads = mean of the two
+    triangulations, n-gons = mean of the fan triangulations); degeneracy
+    thresholds relative to the mesh size; boundary vertices = vertices on a
+    boundary edge, umbrella over boundary edges, step ``(I + |λ_b| L_b)``;
+    eq. 9 uses ``2A`` with the ring area of eq. 5; volume preservation uses
+    the signed volume and rescales about the current vertex centroid by
+    ``(vol_before/vol_after)^(1/k)`` over the k enabled axes (exact); the
+    operator may be rebuilt each iteration (``update="recompute"``).
+``compat="blender"``
+    Exactly what Blender 5.0.1's Laplacian Smooth modifier computes
+    (``docs/blender-compat.md`` in the repository lists every rule):
+    ``"blender"`` weights (½·cot per corner triangle, triangles count 1.5×),
+    absolute 1e-5 locking thresholds, interior = "as many incident edges as
+    face corners", boundary umbrella over every edge joining two boundary
+    vertices with factor ``2|λ_b|`` (and Blender's pull toward the origin
+    next to a locked vertex), eq. 9 replaced by Blender's ``4·a_i``
+    normalisation, volume rescaled about the *input* centroid by
+    ``(|vol_before|/|vol_after|)^(1/3)``, operator fixed after the first
+    iteration.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+from .errors import ParameterError
+from .geometry import signed_volume
+from .mesh import Mesh
+from .operators import _assemble, _check_scheme
+from .solvers import DEFAULT_RTOL, METHODS, SPDSolver, choose_method
+
+__all__ = ["flow", "smooth", "enhance", "FlowReport", "FlowSolver", "COMPAT_MODES"]
+
+COMPAT_MODES = (None, "paper", "blender")
+UPDATES = ("fixed", "recompute")
+
+
+# --------------------------------------------------------------------------
+# parameters
+# --------------------------------------------------------------------------
+
+def _finite(name: str, x) -> float:
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{name} must be a number, got {x!r}") from None
+    if not np.isfinite(v):
+        raise ParameterError(f"{name} must be finite, got {v}")
+    return v
+
+
+def _axes(axes) -> np.ndarray:
+    if isinstance(axes, str):
+        bad = set(axes.lower()) - set("xyz")
+        if bad:
+            raise ParameterError(f"axes must be letters from 'xyz', got {axes!r}")
+        return np.array([c in axes.lower() for c in "xyz"])
+    try:
+        a = [bool(x) for x in axes]
+    except TypeError:
+        raise ParameterError(f"axes must be three booleans or a string like 'xz', got {axes!r}") from None
+    if len(a) != 3:
+        raise ParameterError(f"axes must have three entries (x, y, z), got {len(a)}")
+    return np.array(a)
+
+
+def resolve_weights(mesh: Mesh, weights, invert: bool = False) -> np.ndarray:
+    """Per-vertex weights in [0, 1] from None (all 1), an attribute name or an array."""
+    n = mesh.n_vertices
+    if weights is None:
+        w = np.ones(n)
+    elif isinstance(weights, str):
+        if weights not in mesh.attributes:
+            have = ", ".join(mesh.attributes) or "none"
+            raise ParameterError(f"the mesh has no attribute '{weights}' (attributes: {have})")
+        w = np.asarray(mesh.attributes[weights], dtype=np.float64)
+        if w.ndim != 1:
+            raise ParameterError(f"attribute '{weights}' has shape {w.shape}; weights need shape ({n},)")
+    else:
+        try:
+            w = np.asarray(weights, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ParameterError("weights must be numbers") from None
+        if w.shape != (n,):
+            raise ParameterError(f"weights must have shape ({n},) (one per vertex), got {w.shape}")
+    bad = np.flatnonzero(~np.isfinite(w) | (w < 0) | (w > 1))
+    if bad.size:
+        i = int(bad[0])
+        raise ParameterError(f"weights must lie in [0, 1]; vertex {i} has {w[i]!r} ({bad.size} such vertices)")
+    return 1.0 - w if invert else w.copy()
+
+
+# --------------------------------------------------------------------------
+# report
+# --------------------------------------------------------------------------
+
+@dataclass
+class FlowReport:
+    """What a flow run did (``result.report`` on the returned mesh)."""
+
+    lam: float
+    lam_border: float
+    iterations: int
+    mode: str
+    scheme: str
+    update: str
+    solver: str = "none"
+    cg_iterations: list = field(default_factory=list)
+    locked: int = 0
+    locked_vertices: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    degenerate_triangles: int = 0
+    boundary_vertices: int = 0
+    free_vertices: int = 0
+    volume_scale: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+    seconds: float = 0.0
+    max_displacement: float = 0.0
+
+    def summary(self) -> str:
+        """One line: time, max displacement, locked vertices, solver."""
+        its = f", CG iterations {self.cg_iterations}" if self.cg_iterations else ""
+        notes = f"; {'; '.join(self.notes)}" if self.notes else ""
+        return (f"{self.seconds:.3f} s, max displacement {self.max_displacement:.6g}, "
+                f"{self.locked} locked vertices, solver {self.solver}{its}{notes}")
+
+
+# --------------------------------------------------------------------------
+# the operator at given positions
+# --------------------------------------------------------------------------
+
+@dataclass
+class _Operator:
+    st: object
+    pw: np.ndarray          # pair weights w_ij
+    deg: np.ndarray         # D_i
+    mass: np.ndarray        # m_i: the row scale (D, 2A or Blender's 4aD)
+    locked: np.ndarray
+    boundary: np.ndarray    # boundary-vertex mask
+    ub: np.ndarray          # (Q, 2) umbrella pairs
+    ue: np.ndarray          # (Q,) umbrella weights e_ij
+    E: np.ndarray           # Σ e_ij per vertex
+    n_bad: int
+
+
+def _build_operator(mesh: Mesh, V: np.ndarray, scheme: str, blender: bool, normalized: bool) -> _Operator:
+    t = mesh.topology
+    st, pw, deg, ring, locked, n_bad = _assemble(mesh, scheme, "blender" if blender else "relative", V)
+    edges = t.edges
+    elen = np.linalg.norm(V[edges[:, 0]] - V[edges[:, 1]], axis=1) if edges.size else np.zeros(0)
+    if blender:
+        boundary = t.vertex_edge_count != t.vertex_corner_count
+        sel = boundary[edges[:, 0]] & boundary[edges[:, 1]] if edges.size else np.zeros(0, bool)
+        ub = edges[sel]
+        el = elen[sel]
+        # Blender keeps the raw length as the weight of a too-short edge (its ends are locked)
+        ue = np.where(el < 1e-5, el, 1.0 / np.where(el < 1e-5, 1.0, el))
+        mass = deg if normalized else 4.0 * ring * deg
+    else:
+        boundary = t.boundary_vertex_mask.copy()
+        sel = t.boundary_edge_mask & ~locked[edges[:, 0]] & ~locked[edges[:, 1]]
+        ub = edges[sel]
+        el = elen[sel]
+        ue = 1.0 / el  # short edges were locked above, so el > 0 here
+        mass = deg if normalized else 2.0 * ring
+    n = mesh.n_vertices
+    E = np.bincount(ub[:, 0], ue, minlength=n) + np.bincount(ub[:, 1], ue, minlength=n) if ub.size else np.zeros(n)
+    return _Operator(st, pw, deg, mass, locked, boundary, ub, ue, E, n_bad)
+
+
+# --------------------------------------------------------------------------
+# the solver object
+# --------------------------------------------------------------------------
+
+class _System:
+    """One linear system on a subset of free vertices, with its couplings."""
+
+    def __init__(self, A, free, solver, coupling):
+        self.A = A
+        self.free = free            # bool mask (n,)
+        self.solver = solver
+        self.coupling = coupling    # (rows, cols, weights) of terms moved to the right-hand side
+
+
+class FlowSolver:
+    """Stateful flow on one mesh: reuses operators and factorisations.
+
+    Use it for repeated runs (several λ, iterations, brush dabs); ``flow()``
+    is a thin wrapper.  Options are those of :func:`flow`.
+
+    Examples
+    --------
+    >>> import shapeflow as sf
+    >>> mesh = sf.load_example("spot")
+    >>> solver = sf.FlowSolver(mesh)
+    >>> shapes = [solver.run(lam) for lam in (-5.0, -10.0)]
+    """
+
+    def __init__(self, mesh: Mesh, *, lam_border: float = 0.0, normalized: bool = True,
+                 weights=None, invert_weights: bool = False, scheme: str | None = None,
+                 compat: str | None = None, solver: str = "auto", rtol: float = DEFAULT_RTOL):
+        if not isinstance(mesh, Mesh):
+            raise ParameterError(f"expected a shapeflow.Mesh, got {type(mesh).__name__}")
+        if compat not in COMPAT_MODES:
+            raise ParameterError(f"unknown compat mode {compat!r}; choose 'blender' or None (paper)")
+        self.blender = compat == "blender"
+        if self.blender and scheme not in (None, "blender"):
+            raise ParameterError(f"compat='blender' uses Blender's weights; scheme={scheme!r} is not allowed with it")
+        self.scheme = _check_scheme(scheme or ("blender" if self.blender else "tqlbo"))
+        if solver not in METHODS:
+            raise ParameterError(f"unknown solver {solver!r}; choose one of {', '.join(METHODS)}")
+        self.mesh = mesh
+        self.lam_border = _finite("lam_border", lam_border)
+        self.normalized = bool(normalized)
+        self.w = resolve_weights(mesh, weights, invert_weights)
+        self.solver_method = solver
+        self.rtol = float(rtol)
+        self._op0: _Operator | None = None
+        self._systems: dict = {}
+
+    # --- operator and systems ----------------------------------------------
+    def operator(self, V: np.ndarray | None = None) -> _Operator:
+        """The operator at the input positions (cached) or at ``V``."""
+        if V is None:
+            if self._op0 is None:
+                self._op0 = _build_operator(self.mesh, self.mesh.vertices, self.scheme, self.blender, self.normalized)
+            return self._op0
+        return _build_operator(self.mesh, V, self.scheme, self.blender, self.normalized)
+
+    def _method(self, n_free: int, kappa: float, n_solves: int) -> str:
+        if self.solver_method != "auto":
+            return self.solver_method
+        return choose_method(n_free, kappa, n_solves, self.rtol)
+
+    def _interior_system(self, op: _Operator, lam: float, n_solves: int, notes: list) -> _System | None:
+        if lam == 0.0:
+            return None
+        w = self.w
+        free = ~op.boundary & ~op.locked & (w > 0) & (op.mass > 0) & (op.deg > 0)
+        indefinite = ~op.boundary & ~op.locked & (w > 0) & ((op.mass < 0) | (op.deg < 0))
+        if indefinite.any():
+            if self.blender:
+                free |= indefinite  # Blender solves these rows too; use LU below
+            else:
+                notes.append(f"{int(indefinite.sum())} vertices with negative cotangent degree kept fixed")
+        if not free.any():
+            return None
+        c = np.zeros_like(op.mass)
+        c[free] = op.mass[free] / (abs(lam) * w[free])
+        p0, p1 = op.st.pairs[:, 0], op.st.pairs[:, 1]
+        both = free[p0] & free[p1]
+        diag = np.where(free, c + op.deg, 1.0)
+        A = op.st.matrix(diag, np.where(both, -op.pw, 0.0))
+        # terms of free rows on non-free columns move to the right-hand side
+        a = free[p0] & ~free[p1]
+        b = free[p1] & ~free[p0]
+        coupling = (np.concatenate([p0[a], p1[b]]), np.concatenate([p1[a], p0[b]]),
+                    np.concatenate([op.pw[a], op.pw[b]]))
+        kappa = 1.0 + 2.0 * float(np.max(np.abs(op.deg[free] / np.where(c[free] != 0, c[free], 1.0))))
+        method = "lu" if (self.blender and indefinite.any()) else self._method(int(free.sum()), kappa, n_solves)
+        sysm = _System(A, free, SPDSolver(A, method, rtol=self.rtol), coupling)
+        sysm.c = c
+        return sysm
+
+    def _boundary_system(self, op: _Operator, lam_b: float) -> _System | None:
+        if lam_b == 0.0 or op.ub.size == 0:
+            return None
+        w = self.w
+        free = op.boundary & ~op.locked & (w > 0) & (op.E > 0)
+        if not free.any():
+            return None
+        idx = np.flatnonzero(free)
+        local = np.full(self.mesh.n_vertices, -1)
+        local[idx] = np.arange(idx.size)
+        k_b = 2.0 if self.blender else 1.0
+        c = op.E[idx] / (k_b * abs(lam_b) * w[idx])
+        q0, q1 = op.ub[:, 0], op.ub[:, 1]
+        both = free[q0] & free[q1]
+        rows = np.concatenate([local[q0[both]], local[q1[both]], np.arange(idx.size)])
+        cols = np.concatenate([local[q1[both]], local[q0[both]], np.arange(idx.size)])
+        vals = np.concatenate([-op.ue[both], -op.ue[both], c + op.E[idx]])
+        A = sp.csr_matrix((vals, (rows, cols)), shape=(idx.size, idx.size))
+        # neighbours that are not free: their current position enters the right-hand side,
+        # except (Blender) a locked neighbour, whose term Blender leaves out of the row
+        a = free[q0] & ~free[q1]
+        b = free[q1] & ~free[q0]
+        r = np.concatenate([q0[a], q1[b]])
+        s = np.concatenate([q1[a], q0[b]])
+        e = np.concatenate([op.ue[a], op.ue[b]])
+        if self.blender:
+            keep = ~op.locked[s]
+            r, s, e = r[keep], s[keep], e[keep]
+        method = "lu" if idx.size < 20000 else "cg"
+        sysm = _System(A, free, SPDSolver(A, method, rtol=self.rtol), (r, s, e))
+        sysm.c = c
+        sysm.idx = idx
+        sysm.local = local
+        return sysm
+
+    # --- one step -------------------------------------------------------------
+    def _step(self, V: np.ndarray, lam: float, lam_b: float, isys: _System | None,
+              bsys: _System | None, axes: np.ndarray, report: FlowReport) -> np.ndarray:
+        X = V.copy()
+        if bsys is not None:
+            r, s, e = bsys.coupling
+            rhs = bsys.c[:, None] * V[bsys.idx]
+            if r.size:
+                lr = bsys.local[r]
+                for k in range(3):
+                    rhs[:, k] += np.bincount(lr, e * V[s, k], minlength=bsys.idx.size)
+            X[bsys.idx] = bsys.solver.solve(rhs, V[bsys.idx])
+        if isys is not None:
+            r, s, e = isys.coupling
+            rhs = np.where(isys.free[:, None], isys.c[:, None] * V, X)
+            if r.size:
+                for k in range(3):
+                    rhs[:, k] += np.bincount(r, e * X[s, k], minlength=V.shape[0])
+            Xi = isys.solver.solve(rhs, X)
+            if isys.solver.method == "cg":
+                report.cg_iterations.append(isys.solver.stats.iterations)
+            X[isys.free] = Xi[isys.free]
+        if not np.all(np.isfinite(X)):
+            bad = ~np.isfinite(X).all(axis=1)
+            X[bad] = V[bad]
+            report.notes.append(f"{int(bad.sum())} vertices with a non-finite solution kept in place")
+        sign = np.where(self._boundary_mask_for_sign, 1.0 if lam_b >= 0 else -1.0, 1.0 if lam >= 0 else -1.0)
+        out = V.copy()
+        d = (X - V) * sign[:, None]
+        out[:, axes] += d[:, axes]
+        return out
+
+    # --- volume ------------------------------------------------------------------
+    def _preserve_volume(self, V_before: np.ndarray, V_after: np.ndarray, axes: np.ndarray,
+                         center0: np.ndarray, report: FlowReport) -> np.ndarray:
+        mesh = self.mesh
+        k = int(axes.sum())
+        if self.blender:
+            vb = abs(signed_volume(mesh, V_before, center0))
+            va = abs(signed_volume(mesh, V_after, center0))
+            if va == 0.0:
+                return V_after
+            beta = (vb / va) ** (1.0 / 3.0)
+            c = center0
+        else:
+            c = V_after.mean(axis=0)
+            vb = signed_volume(mesh, V_before, c)
+            va = signed_volume(mesh, V_after, c)
+            if va == 0.0 or vb == 0.0 or (va > 0) != (vb > 0):
+                report.notes.append("volume preservation skipped (volume is zero or changed sign)")
+                return V_after
+            beta = (vb / va) ** (1.0 / k)
+        report.volume_scale.append(float(beta))
+        out = V_after.copy()
+        out[:, axes] = c[axes] + beta * (V_after[:, axes] - c[axes])
+        return out
+
+    # --- public -----------------------------------------------------------------
+    def run(self, lam: float, *, iterations: int = 1, preserve_volume: bool = False,
+            axes=(True, True, True), update: str = "fixed",
+            progress: Callable[[int, int], None] | None = None) -> Mesh:
+        """Run ``iterations`` implicit steps with factor ``lam``; returns a new Mesh.
+
+        The returned mesh carries a :class:`FlowReport` as ``result.report``.
+        """
+        t0 = time.perf_counter()
+        lam = _finite("lam", lam)
+        lam_b = self.lam_border
+        if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)):
+            raise ParameterError(f"iterations must be a non-negative integer, got {iterations!r}")
+        if iterations < 0:
+            raise ParameterError(f"iterations must be >= 0, got {iterations}")
+        if update not in UPDATES:
+            raise ParameterError(f"update must be 'fixed' or 'recompute', got {update!r}")
+        if self.blender and update != "fixed":
+            raise ParameterError("compat='blender' keeps the operator of the first iteration (update='fixed')")
+        ax = _axes(axes)
+        report = FlowReport(lam=lam, lam_border=lam_b, iterations=int(iterations),
+                            mode="blender" if self.blender else "paper", scheme=self.scheme, update=update)
+        mesh = self.mesh
+        V0 = mesh.vertices
+        if iterations == 0 or not ax.any() or (lam == 0.0 and lam_b == 0.0) or not (self.w > 0).any() \
+                or mesh.n_faces == 0:
+            report.notes.append("nothing to do: input returned unchanged")
+            return self._result(V0, report, t0)
+        op = self.operator()
+        report.locked_vertices = np.flatnonzero(op.locked)
+        report.locked = int(report.locked_vertices.size)
+        report.degenerate_triangles = op.n_bad
+        report.boundary_vertices = int(op.boundary.sum())
+        center0 = V0.mean(axis=0)
+        n_solves = iterations if update == "fixed" else 1
+        V = np.array(V0)
+        for it in range(int(iterations)):
+            if it == 0 or update == "recompute":
+                if it > 0:
+                    op = self.operator(V)
+                isys = self._interior_system(op, lam, n_solves, report.notes)
+                bsys = self._boundary_system(op, lam_b)
+                self._boundary_mask_for_sign = op.boundary
+                if isys is not None:
+                    report.solver = isys.solver.method
+                report.free_vertices = int((isys.free.sum() if isys else 0) + (bsys.free.sum() if bsys else 0))
+                if isys is None and bsys is None:
+                    report.notes.append("no free vertex: input returned unchanged")
+                    break
+            V_new = self._step(V, lam, lam_b, isys, bsys, ax, report)
+            if preserve_volume:
+                V_new = self._preserve_volume(V, V_new, ax, center0, report)
+            V = V_new
+            if progress is not None:
+                progress(it + 1, int(iterations))
+        report.notes = list(dict.fromkeys(report.notes))
+        return self._result(V, report, t0)
+
+    def _result(self, V: np.ndarray, report: FlowReport, t0: float) -> Mesh:
+        out = self.mesh.with_vertices(V) if V is not self.mesh.vertices else self.mesh.with_vertices(self.mesh.vertices)
+        d = V - self.mesh.vertices
+        report.max_displacement = float(np.sqrt((d * d).sum(axis=1)).max()) if V.size else 0.0
+        report.seconds = time.perf_counter() - t0
+        out.report = report
+        return out
+
+
+# --------------------------------------------------------------------------
+# functional API
+# --------------------------------------------------------------------------
+
+def flow(mesh: Mesh, lam: float, *, lam_border: float = 0.0, iterations: int = 1,
+         normalized: bool = True, weights=None, invert_weights: bool = False,
+         preserve_volume: bool = False, axes: Sequence[bool] | str = (True, True, True),
+         scheme: str | None = None, update: str = "fixed", compat: str | None = None,
+         solver: str = "auto", rtol: float = DEFAULT_RTOL,
+         progress: Callable[[int, int], None] | None = None) -> Mesh:
+    """Smooth (λ > 0) or enhance (λ < 0) a mesh with the implicit TQLBO flow.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    lam : float
+        λ of eq. 11 (λ·dt folded into one number): > 0 smooths, < 0 enhances;
+        the paper's figures use +90 … −400.
+    lam_border : float
+        λ_b for boundary vertices of open meshes (own sign); 0 keeps them fixed.
+    iterations : int
+        Number of implicit steps (0 returns the input).
+    normalized : bool
+        True: eq. 10, L = I − D⁻¹W (scale-invariant, recommended).
+        False: eq. 9, area-normalised (depends on the model's scale).
+    weights : None, str or array (n,)
+        Per-vertex factor in [0, 1] (W_p); 0 leaves a vertex untouched.  A
+        string names a mesh attribute (e.g. ``"weight"``); None = all 1.
+    invert_weights : bool
+        Use 1 − weights.
+    preserve_volume : bool
+        Rescale about the centroid after each step to keep the enclosed volume.
+        It is a global similarity: every vertex, fixed ones too, is rescaled.
+    axes : three bools or a string such as ``"xy"``
+        Which coordinates may change.
+    scheme : {"tqlbo", "blender"}, optional
+        Cotangent weights; default "tqlbo" (paper) or "blender" with compat.
+    update : {"fixed", "recompute"}
+        Keep the operator of the first iteration (Blender's behaviour) or
+        rebuild it from the current positions every iteration (a true flow).
+    compat : None or "blender"
+        ``"blender"`` reproduces Blender's Laplacian Smooth modifier exactly
+        (see the module docstring for every difference).
+    solver : {"auto", "cg", "cholesky", "lu"}
+        Linear solver (:mod:`shapeflow.solvers`); "auto" picks by cost.
+    rtol : float
+        CG tolerance, relative to the initial residual of each solve.
+    progress : callable(done, total), optional
+        Called after each iteration.
+
+    Returns
+    -------
+    Mesh
+        New positions, same faces and attributes; ``result.report`` is a
+        :class:`FlowReport` (locked vertices, solver, CG iterations, time...).
+
+    Examples
+    --------
+    >>> import shapeflow as sf
+    >>> mesh = sf.load_example("spot")
+    >>> bigger = sf.flow(mesh, -20.0)              # enhance
+    >>> smoother = sf.flow(mesh, 5.0, iterations=3)  # smooth
+    >>> bigger.report.locked
+    0
+    """
+    return FlowSolver(mesh, lam_border=lam_border, normalized=normalized, weights=weights,
+                      invert_weights=invert_weights, scheme=scheme, compat=compat, solver=solver,
+                      rtol=rtol).run(lam, iterations=iterations, preserve_volume=preserve_volume,
+                                     axes=axes, update=update, progress=progress)
+
+
+def _strength(s) -> float:
+    v = _finite("strength", s)
+    if v < 0:
+        raise ParameterError(f"strength must be >= 0 (use flow() for a signed λ), got {v}")
+    return v
+
+
+def smooth(mesh: Mesh, strength: float, **kw) -> Mesh:
+    """Smooth: ``flow(mesh, +strength, **kw)`` (strength >= 0)."""
+    return flow(mesh, _strength(strength), **kw)
+
+
+def enhance(mesh: Mesh, strength: float, **kw) -> Mesh:
+    """Enhance the shape: ``flow(mesh, −strength, **kw)`` (strength >= 0)."""
+    return flow(mesh, -_strength(strength), **kw)
