@@ -50,7 +50,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from .errors import ParameterError
-from .geometry import face_vector_areas, triangle_cotangents, vertex_normals
+from .geometry import triangle_cotangents, vertex_normals
 
 __all__ = [
     "SCHEMES",
@@ -351,19 +351,39 @@ def laplacian(mesh, normalized: bool = True, scheme: str = "tqlbo", *, threshold
 def vertex_areas(mesh, kind: str = "ring", scheme: str = "tqlbo") -> np.ndarray:
     """Per-vertex area.
 
-    ``"ring"``: the paper's ring area (eq. 5) — on regular triangle or quad
-    meshes about 3× the area a vertex "owns".  ``"barycentric"``: each face's
-    area split equally among its corners (the standard choice; sums to the
-    surface area).
+    ``"ring"``
+        The paper's ring area (eq. 5): the whole area of the weighted
+        triangles around the vertex, about 3× the area the vertex owns.
+    ``"barycentric"``
+        ``ring / 3``: on triangle meshes exactly the barycentric area (a third
+        of each incident triangle); on quads and n-gons it splits each face's
+        area among its corners in proportion to the operator's triangles, and
+        the areas of a planar face's corners sum to the face area.  Because it
+        comes from the same triangles as W it stays consistent on mixed
+        meshes (curvature converges on randomly half-triangulated spheres,
+        where a plain "face area / corners" split does not).
+    ``"mixed"``
+        Meyer et al.'s mixed Voronoi area, averaged over the operator's
+        triangles with their weights (exactly Meyer's on triangle meshes).
     """
+    st, _, _, ring, _, _ = _assemble(mesh, scheme, "relative")
     if kind == "ring":
-        return _assemble(mesh, scheme, "relative")[3]
+        return ring
     if kind == "barycentric":
-        fa = np.linalg.norm(face_vector_areas(mesh), axis=1)
-        t = mesh.topology
-        per = np.repeat(fa / t.face_sizes, t.face_sizes)
-        return np.bincount(t.face_indices, per, minlength=mesh.n_vertices)
-    raise ParameterError(f"unknown area kind {kind!r}; choose 'ring' or 'barycentric'")
+        return ring / 3.0
+    if kind == "mixed":
+        cot, dbl, sq = triangle_cotangents(mesh.vertices, st.tris)
+        area = 0.5 * dbl
+        vor = np.empty_like(cot)
+        for k in range(3):
+            a, b = (k + 1) % 3, (k + 2) % 3
+            vor[:, k] = (sq[:, b] * cot[:, b] + sq[:, a] * cot[:, a]) / 8.0
+        obtuse = cot < 0  # angle > 90° at that corner
+        any_obtuse = obtuse.any(axis=1)
+        vor[any_obtuse] = (area[any_obtuse, None] / 4.0) * np.where(obtuse[any_obtuse], 2.0, 1.0)
+        vals = (vor * st.area_w[:, None]).reshape(-1)
+        return np.bincount(st.tris.reshape(-1), vals, minlength=mesh.n_vertices)
+    raise ParameterError(f"unknown area kind {kind!r}; choose 'ring', 'barycentric' or 'mixed'")
 
 
 def mean_curvature_normal(mesh, *, area: str = "ring", scheme: str = "tqlbo") -> np.ndarray:
@@ -375,7 +395,8 @@ def mean_curvature_normal(mesh, *, area: str = "ring", scheme: str = "tqlbo") ->
 
     ``area="ring"`` uses the paper's ring area (eq. 5); since that area is
     about 3× the area a vertex owns, the paper's curvature is about 1/3 of
-    the true value.  ``area="barycentric"`` (standard) converges to H.
+    the true value.  ``area="barycentric"`` or ``"mixed"`` (standard choices,
+    see :func:`vertex_areas`) converge to H.
     Vertices with zero area get 0; values at boundary vertices are not
     curvature (no closed ring).
     """
