@@ -78,22 +78,18 @@ def _check_scheme(scheme: str) -> str:
 
 
 # --------------------------------------------------------------------------
-# per-face-size templates: which triangles of a face contribute, with weights
+# structure: which triangles contribute, and the sparse pattern (per topology)
 # --------------------------------------------------------------------------
 
 @lru_cache(maxsize=None)
-def _template(s: int, scheme: str):
-    """Local triangles (t, 3), cot weights (t,), area weights (t,) of an s-gon.
+def _fan_interior_triangles(s: int):
+    """Fan triangles of an s-gon (s >= 5) that are not corner triangles ("ears").
 
-    The middle entry of each blender-scheme triangle is its corner vertex.
+    The mean over the s fan triangulations gives every ear weight 2/s (each ear
+    lies in exactly two fans) and every other fan triangle weight 1/s; the ears
+    are handled as corner triangles, these are the rest.  Returns local corner
+    indices (t, 3) and weights (t,).
     """
-    if scheme == "blender":
-        k = np.arange(s)
-        tris = np.stack([(k - 1) % s, k, (k + 1) % s], axis=1)
-        return tris, np.full(s, 0.5), np.ones(s)
-    if s == 3:
-        return np.array([[2, 0, 1]]), np.ones(1), np.ones(1)
-    # mean over the s fan triangulations; identical triangles merged
     acc: dict[tuple, list] = {}
     for r in range(s):
         for j in range(1, s - 1):
@@ -103,20 +99,39 @@ def _template(s: int, scheme: str):
                 acc[key][1] += 1.0 / s
             else:
                 acc[key] = [tri, 1.0 / s]
-    tris = np.array([v[0] for v in acc.values()])
-    w = np.array([v[1] for v in acc.values()])
-    return tris, w, w.copy()
+    ears = {tuple(sorted(((k - 1) % s, k, (k + 1) % s))) for k in range(s)}
+    keep = [v for k, v in acc.items() if k not in ears]
+    if not keep:
+        return np.zeros((0, 3), np.int64), np.zeros(0)
+    return np.array([v[0] for v in keep]), np.array([v[1] for v in keep])
+
+
+def corner_weights(sizes_per_corner: np.ndarray, scheme: str):
+    """Cotangent and area weight of every corner triangle (prev, curr, next).
+
+    ``"blender"``: ½·cot, whole area.  ``"tqlbo"``: a triangle is its own
+    three corner triangles at 1/3 each (so it counts once); a quad's corner
+    triangles weigh ½ (the mean of its two triangulations); an s-gon's ears
+    2/s (the mean of its fan triangulations; the rest is in
+    :func:`_fan_interior_triangles`).
+    """
+    cs = sizes_per_corner
+    if scheme == "blender":
+        return np.full(cs.size, 0.5), np.ones(cs.size)
+    w = np.where(cs == 3, 1.0 / 3.0, 2.0 / cs)
+    return w, w
 
 
 class _Structure:
-    """Everything about W that depends on topology only (built once, cached).
+    """Everything about W that depends on the topology only (built once, cached).
 
-    * ``tris`` (T, 3), ``cot_w``/``area_w`` (T,): the weighted triangles;
-    * ``slot_pair`` (T, 3): the vertex pair opposite each triangle corner;
-    * ``pairs`` (P, 2): unique vertex pairs (mesh edges first, then chords);
-    * a CSR pattern for symmetric n×n matrices with diagonal, and the data
-      positions of every pair (both triangles) and of the diagonal, so a new
-      matrix on this pattern costs one gather.
+    Contributions come from every polygon corner triangle (prev, curr, next)
+    with weight ``corner_w`` and, for ``"tqlbo"`` n-gons, from ``extra``
+    fan triangles.  Vertex pairs are the unique mesh edges followed by the
+    unique chords (quad diagonals, n-gon chords); every contribution has a
+    precomputed pair index, and the symmetric CSR pattern (with diagonal)
+    stores where each pair and each diagonal entry sits, so a matrix with new
+    values costs one scatter.
     """
 
     def __init__(self, topo, scheme: str):
@@ -124,73 +139,98 @@ class _Structure:
         sizes = topo.face_sizes
         offs = topo.face_offsets
         fi = topo.face_indices
+        nxt = topo.corner_next
+        prv = topo.corner_prev
         corner_edge = topo.corner_edge
         edges = topo.edges
         n_edges = edges.shape[0]
-        tris_l, cw_l, aw_l, slot_l, mid_l = [], [], [], [], []
-        chord_keys_l, chord_slot_pos = [], []
-        n_slots = 0
-        for s in np.unique(sizes):
-            s = int(s)
-            faces = np.flatnonzero(sizes == s)
-            base = offs[faces]
-            lt, lcw, law = _template(s, scheme)
-            t = lt.shape[0]
-            corners = base[:, None, None] + lt[None, :, :]          # (m_s, t, 3) global corners
-            tris_l.append(fi[corners].reshape(-1, 3))
-            cw_l.append(np.tile(lcw, faces.size))
-            aw_l.append(np.tile(law, faces.size))
-            # pair opposite local corner k of each template triangle
-            slot = np.empty((faces.size, t, 3), dtype=np.int64)
-            for k in range(3):
-                a = lt[:, (k + 1) % 3]
-                b = lt[:, (k + 2) % 3]
-                fwd = (b - a) % s == 1   # a -> b is the half-edge of corner a
-                bwd = (a - b) % s == 1
-                for q in range(t):
-                    if fwd[q]:
-                        slot[:, q, k] = corner_edge[base + a[q]]
-                    elif bwd[q]:
-                        slot[:, q, k] = corner_edge[base + b[q]]
-                    else:  # a chord: resolved below
-                        va = fi[base + a[q]]
-                        vb = fi[base + b[q]]
-                        chord_keys_l.append(np.minimum(va, vb) * n + np.maximum(va, vb))
-                        flat = n_slots + (np.arange(faces.size) * t + q) * 3 + k
-                        chord_slot_pos.append(flat)
-                        slot[:, q, k] = -1
-            slot_l.append(slot.reshape(-1, 3))
-            n_slots += faces.size * t * 3
-        self.tris = np.concatenate(tris_l) if tris_l else np.zeros((0, 3), np.int64)
-        self.cot_w = np.concatenate(cw_l) if cw_l else np.zeros(0)
-        self.area_w = np.concatenate(aw_l) if aw_l else np.zeros(0)
-        slot_pair = np.concatenate(slot_l).reshape(-1) if slot_l else np.zeros(0, np.int64)
+        c = fi.size
+        cs = np.repeat(sizes, sizes)
+        self.corner_w, self.corner_aw = corner_weights(cs, scheme)
+        self.is_tri = cs == 3
+        # --- chords: the skip pair (prev, next) of corners of faces with >= 4 corners
+        local = np.arange(c) - np.repeat(offs[:-1], sizes)
+        ch = np.flatnonzero(cs >= 4)
+        primary = ch[~((cs[ch] == 4) & (local[ch] >= 2))]     # a quad's corners k, k+2 share a diagonal
+        va, vb = fi[prv[primary]], fi[nxt[primary]]
+        keys = [np.minimum(va, vb) * n + np.maximum(va, vb)]
+        # --- extra fan triangles of tqlbo n-gons
+        xt, xw, xslot_keys, xslot_edge = [], [], [], []
+        if scheme == "tqlbo":
+            for s_ in np.unique(sizes[sizes >= 5]):
+                s_ = int(s_)
+                lt, lw = _fan_interior_triangles(s_)
+                if lt.size == 0:
+                    continue
+                faces = np.flatnonzero(sizes == s_)
+                corners = offs[faces][:, None, None] + lt[None]          # (m_s, t, 3)
+                xt.append(fi[corners].reshape(-1, 3))
+                xw.append(np.tile(lw, faces.size))
+                # pair opposite local corner k: an edge (adjacent corners) or a chord
+                sl_edge = np.full((faces.size, lt.shape[0], 3), -1, dtype=np.int64)
+                sl_key = np.full((faces.size, lt.shape[0], 3), -1, dtype=np.int64)
+                for k in range(3):
+                    a_ = lt[:, (k + 1) % 3]
+                    b_ = lt[:, (k + 2) % 3]
+                    ca = corners[:, :, (k + 1) % 3]
+                    cb = corners[:, :, (k + 2) % 3]
+                    fwd = (b_ - a_) % s_ == 1
+                    bwd = (a_ - b_) % s_ == 1
+                    sl_edge[:, fwd, k] = corner_edge[ca[:, fwd]]
+                    sl_edge[:, bwd, k] = corner_edge[cb[:, bwd]]
+                    chord = ~(fwd | bwd)
+                    x, y = fi[ca[:, chord]], fi[cb[:, chord]]
+                    sl_key[:, chord, k] = np.minimum(x, y) * n + np.maximum(x, y)
+                xslot_edge.append(sl_edge.reshape(-1, 3))
+                xslot_keys.append(sl_key.reshape(-1, 3))
+        if xslot_keys:
+            xk = np.concatenate(xslot_keys)
+            keys.append(xk[xk >= 0])
+        allkeys = np.concatenate(keys)
         pairs = edges
-        if chord_keys_l:
-            keys = np.concatenate(chord_keys_l)
-            pos = np.concatenate(chord_slot_pos)
-            ukeys, inv = np.unique(keys, return_inverse=True)
-            ekeys = edges[:, 0] * n + edges[:, 1]        # sorted (edges are sorted by key)
+        chord_pair = np.zeros(0, np.int64)
+        if allkeys.size:
+            ukeys, inv = np.unique(allkeys, return_inverse=True)
+            ekeys = edges[:, 0] * n + edges[:, 1]          # sorted: edges come sorted by key
             j = np.minimum(np.searchsorted(ekeys, ukeys), max(n_edges - 1, 0))
-            is_edge = (ekeys[j] == ukeys) if n_edges else np.zeros(ukeys.size, bool)
+            is_edge = ekeys[j] == ukeys if n_edges else np.zeros(ukeys.size, bool)
+            ids = np.where(is_edge, j, 0)
             new = ~is_edge
-            ids = np.empty(ukeys.size, dtype=np.int64)
-            ids[is_edge] = j[is_edge]
             ids[new] = n_edges + np.arange(int(new.sum()))
-            slot_pair[pos] = ids[inv]
-            extra = np.stack([ukeys[new] // n, ukeys[new] % n], axis=1)
-            pairs = np.concatenate([edges, extra])
-        self.slot_pair = slot_pair.reshape(-1, 3)
+            pairs = np.concatenate([edges, np.stack([ukeys[new] // n, ukeys[new] % n], axis=1)])
+            chord_pair = ids[inv]
+        # pair of each corner's skip chord (quads: corners k and k+2 share one)
+        skip_pair = np.full(c, -1, dtype=np.int64)
+        skip_pair[primary] = chord_pair[:primary.size]
+        sec = ch[(cs[ch] == 4) & (local[ch] >= 2)]
+        skip_pair[sec] = skip_pair[sec - 2]
+        tri_c = np.flatnonzero(self.is_tri)
+        skip_pair[tri_c] = corner_edge[nxt[tri_c]]            # a triangle's skip pair is an edge
+        self.skip_pair = skip_pair
+        if xt:
+            self.extra_tris = np.concatenate(xt)
+            self.extra_w = np.concatenate(xw)
+            sp_ = np.concatenate(xslot_edge)
+            xk = np.concatenate(xslot_keys)
+            sp_[xk >= 0] = chord_pair[primary.size:]
+            self.extra_pair = sp_
+        else:
+            self.extra_tris = np.zeros((0, 3), np.int64)
+            self.extra_w = np.zeros(0)
+            self.extra_pair = np.zeros((0, 3), np.int64)
         self.pairs = pairs
         self.n = n
-        # symmetric CSR pattern with diagonal; data[k] = id of the entry at k
+        self.corner_edge = corner_edge
+        self.nxt = nxt
+        self.prv = prv
+        self.fi = fi
+        # --- symmetric CSR pattern with diagonal; data[k] = id of the entry at k
         P = pairs.shape[0]
         rows = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])
         cols = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)])
         ids = np.arange(1, 2 * P + n + 1, dtype=np.float64)
-        pat = sp.csr_matrix((ids, (rows, cols)), shape=(n, n))
-        pat.sort_indices()
-        entry_at = pat.data.astype(np.int64) - 1          # CSR position -> entry id
+        pat = sp.csr_matrix((ids, (rows, cols)), shape=(n, n))  # no duplicates: nothing is summed
+        entry_at = pat.data.astype(np.int64) - 1
         self.indptr = pat.indptr
         self.indices = pat.indices
         pos_of = np.empty_like(entry_at)
@@ -198,7 +238,6 @@ class _Structure:
         self.pos_upper = pos_of[:P]
         self.pos_lower = pos_of[P:2 * P]
         self.pos_diag = pos_of[2 * P:]
-        self.csr_rows = np.repeat(np.arange(n), np.diff(self.indptr))
 
     def matrix(self, diag: np.ndarray, off: np.ndarray) -> sp.csr_matrix:
         """Symmetric CSR matrix with the given diagonal and per-pair values."""
@@ -208,6 +247,18 @@ class _Structure:
         data[self.pos_lower] = off
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
 
+    def triangles(self):
+        """All weighted triangles: (tris (T, 3), cot weights, area weights, corner flag).
+
+        Corner triangles come first as (prev, curr, next); ``corner`` is True
+        for them.  Used by the non-hot paths (mixed areas, tests).
+        """
+        ct = np.stack([self.fi[self.prv], self.fi, self.fi[self.nxt]], axis=1)
+        tris = np.concatenate([ct, self.extra_tris])
+        return (tris, np.concatenate([self.corner_w, self.extra_w]),
+                np.concatenate([self.corner_aw, self.extra_w]),
+                np.r_[np.ones(ct.shape[0], bool), np.zeros(self.extra_tris.shape[0], bool)])
+
 
 def _structure(mesh, scheme: str) -> _Structure:
     topo = mesh.topology
@@ -215,6 +266,29 @@ def _structure(mesh, scheme: str) -> _Structure:
     if scheme not in cache:
         cache[scheme] = _Structure(topo, scheme)
     return cache[scheme]
+
+
+def corner_cotangents(V: np.ndarray, fi: np.ndarray, nxt: np.ndarray, prv: np.ndarray):
+    """Cotangents of every corner triangle (prev, curr, next), from half-edge vectors.
+
+    Returns ``cot_p, cot_c, cot_n`` (angles at prev, curr, next), twice the
+    area ``dbl``, and the squared lengths ``l_prev`` (curr–prev), ``l_next``
+    (curr–next), ``l_skip`` (prev–next).  Zero-area rows give 0, never inf.
+    """
+    E = V[fi[nxt]] - V[fi]                 # half-edge vector of every corner (curr -> next)
+    Ep = E[prv]                             # prev -> curr
+    l_next = np.einsum("ij,ij->i", E, E)
+    l_prev = l_next[prv]
+    dot = -np.einsum("ij,ij->i", Ep, E)     # (prev - curr) · (next - curr)
+    cr = np.cross(Ep, E)
+    dbl = np.sqrt(np.einsum("ij,ij->i", cr, cr))
+    ok = dbl > 0
+    inv = np.divide(1.0, dbl, out=np.zeros_like(dbl), where=ok)
+    cot_c = dot * inv
+    cot_p = (l_prev - dot) * inv
+    cot_n = (l_next - dot) * inv
+    l_skip = l_prev + l_next - 2.0 * dot
+    return cot_p, cot_c, cot_n, dbl, l_prev, l_next, l_skip
 
 
 # --------------------------------------------------------------------------
@@ -264,35 +338,52 @@ def _assemble(mesh, scheme: str, thresholds: str, vertices: np.ndarray | None = 
     st = _structure(mesh, _check_scheme(scheme))
     V = mesh.vertices if vertices is None else vertices
     n = mesh.n_vertices
-    cot, dbl, sq = triangle_cotangents(V, st.tris)
+    fi = st.fi
+    cot_p, cot_c, cot_n, dbl, l_prev, l_next, l_skip = corner_cotangents(V, fi, st.nxt, st.prv)
+    xcot, xdbl, xsq = triangle_cotangents(V, st.extra_tris)
     locked = np.zeros(n, dtype=bool)
     edges = mesh.topology.edges
-    elen = np.linalg.norm(V[edges[:, 0]] - V[edges[:, 1]], axis=1) if edges.size else np.zeros(0)
+    # edge lengths from the corners' half-edges (every edge has at least one corner)
+    elen2 = np.empty(edges.shape[0])
+    elen2[st.corner_edge] = l_next
     if thresholds == "relative":
-        h = float(elen.mean()) if elen.size else 0.0
-        short = elen <= REL_EDGE_TOL * h
-        bad = dbl <= REL_SHAPE_TOL * sq.max(axis=1) if st.tris.size else np.zeros(0, bool)
+        h = float(np.sqrt(elen2).mean()) if elen2.size else 0.0
+        short = elen2 <= (REL_EDGE_TOL * h) ** 2
+        bad = dbl <= REL_SHAPE_TOL * np.maximum(np.maximum(l_prev, l_next), l_skip)
+        xbad = xdbl <= REL_SHAPE_TOL * xsq.max(axis=1) if xdbl.size else np.zeros(0, bool)
         locked[edges[short].reshape(-1)] = True
-        locked[st.tris[bad].reshape(-1)] = True
-        cot[bad] = 0.0
-        n_bad = int(bad.sum())
+        bc = np.flatnonzero(bad)
+        locked[fi[bc]] = True
+        locked[fi[st.prv[bc]]] = True
+        locked[fi[st.nxt[bc]]] = True
+        locked[st.extra_tris[xbad].reshape(-1)] = True
+        n_bad = int(bc.size + xbad.sum())
     else:  # Blender's absolute rules
-        short = elen < BLENDER_MIN
-        locked[edges[short].reshape(-1)] = True
+        locked[edges[elen2 < BLENDER_MIN ** 2].reshape(-1)] = True
         small = 0.5 * dbl < BLENDER_MIN
-        if scheme == "blender":
-            locked[st.tris[small, 1]] = True       # the corner vertex of a corner triangle
-        else:
-            locked[st.tris[small].reshape(-1)] = True
-        flat = ~(dbl > FLT_EPSILON)
-        cot[flat] = 0.0
-        n_bad = int(flat.sum())
-    vals = (cot * st.cot_w[:, None]).reshape(-1)
+        locked[fi[small]] = True                      # the corner vertex of a corner triangle
+        xsmall = 0.5 * xdbl < BLENDER_MIN
+        locked[st.extra_tris[xsmall].reshape(-1)] = True
+        bad = ~(dbl > FLT_EPSILON)
+        xbad = ~(xdbl > FLT_EPSILON)
+        n_bad = int(bad.sum() + xbad.sum())
+    w = np.where(bad, 0.0, st.corner_w)
+    # edge of corner k (curr -> next) gets cot at prev of triangle k and cot at next of triangle next(k)
+    wc_n = w * cot_n
+    h_edge = w * cot_p + wc_n[st.nxt]
+    skip = w * cot_c
     P = st.pairs.shape[0]
-    pw = np.bincount(st.slot_pair.reshape(-1), vals, minlength=P)
+    pw = np.bincount(st.corner_edge, h_edge, minlength=P) + np.bincount(st.skip_pair, skip, minlength=P)
+    if st.extra_tris.size:
+        xv = (xcot * np.where(xbad, 0.0, st.extra_w)[:, None]).reshape(-1)
+        pw += np.bincount(st.extra_pair.reshape(-1), xv, minlength=P)
     deg = np.bincount(st.pairs[:, 0], pw, minlength=n) + np.bincount(st.pairs[:, 1], pw, minlength=n)
-    tri_area = 0.5 * dbl * st.area_w
-    ring = np.bincount(st.tris.reshape(-1), np.repeat(tri_area, 3), minlength=n)
+    # ring area: each corner triangle's (weighted) area to its three vertices
+    ca = 0.5 * dbl * st.corner_aw
+    ring = np.bincount(fi, ca + ca[st.nxt] + ca[st.prv], minlength=n)
+    if st.extra_tris.size:
+        xa = 0.5 * xdbl * st.extra_w
+        ring += np.bincount(st.extra_tris.reshape(-1), np.repeat(xa, 3), minlength=n)
     return st, pw, deg, ring, locked, n_bad
 
 
@@ -372,7 +463,8 @@ def vertex_areas(mesh, kind: str = "ring", scheme: str = "tqlbo") -> np.ndarray:
     if kind == "barycentric":
         return ring / 3.0
     if kind == "mixed":
-        cot, dbl, sq = triangle_cotangents(mesh.vertices, st.tris)
+        tris, _, area_w, _ = st.triangles()
+        cot, dbl, sq = triangle_cotangents(mesh.vertices, tris)
         area = 0.5 * dbl
         vor = np.empty_like(cot)
         for k in range(3):
@@ -381,8 +473,8 @@ def vertex_areas(mesh, kind: str = "ring", scheme: str = "tqlbo") -> np.ndarray:
         obtuse = cot < 0  # angle > 90° at that corner
         any_obtuse = obtuse.any(axis=1)
         vor[any_obtuse] = (area[any_obtuse, None] / 4.0) * np.where(obtuse[any_obtuse], 2.0, 1.0)
-        vals = (vor * st.area_w[:, None]).reshape(-1)
-        return np.bincount(st.tris.reshape(-1), vals, minlength=mesh.n_vertices)
+        vals = (vor * area_w[:, None]).reshape(-1)
+        return np.bincount(tris.reshape(-1), vals, minlength=mesh.n_vertices)
     raise ParameterError(f"unknown area kind {kind!r}; choose 'ring', 'barycentric' or 'mixed'")
 
 
