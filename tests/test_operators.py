@@ -137,12 +137,23 @@ def test_symmetry_rowsums_and_psd_on_shared_meshes(path, scheme):
     assert abs(W - W.T).max() <= 1e-12 * max(1.0, abs(W).max())
     K = sp.diags(cw.degree) - W
     assert np.abs(K @ np.ones(m.n_vertices)).max() < 1e-9 * max(1.0, cw.degree.max())
-    # smallest eigenvalue of K is ~0 (PSD): shift-invert around a small negative number
-    from scipy.sparse.linalg import eigsh
+    # PSD: K + εI has an LDLᵀ factorisation with positive pivots (Sylvester's law of
+    # inertia; SuperLU with a symmetric ordering and no pivoting gives exactly those)
+    from scipy.sparse.linalg import splu
 
-    scale = float(cw.degree.max())
-    vals = eigsh(K.tocsc() / scale, k=3, sigma=-1e-3, which="LM", return_eigenvectors=False)
-    assert vals.min() > -1e-9
+    eps = 1e-9 * float(np.mean(np.abs(cw.degree)))
+    lu = splu((K + eps * sp.identity(m.n_vertices)).tocsc(), permc_spec="MMD_AT_PLUS_A",
+              diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+    assert (lu.U.diagonal() > 0).all()
+    # ... and the check can fail: K − 10ε I is indefinite (K has the eigenvalue 0)
+    lu = splu((K - 10 * eps * sp.identity(m.n_vertices)).tocsc(), permc_spec="MMD_AT_PLUS_A",
+              diag_pivot_thresh=0.0, options=dict(SymmetricMode=True))
+    assert (lu.U.diagonal() < 0).any()
+    if m.n_vertices < 3000:  # cross-check with the smallest eigenvalues
+        from scipy.sparse.linalg import eigsh
+
+        vals = eigsh(K.tocsc() / cw.degree.max(), k=2, sigma=-1e-3, which="LM", return_eigenvectors=False)
+        assert vals.min() > -1e-9
 
 
 # --- curvature convergence ------------------------------------------------------------
