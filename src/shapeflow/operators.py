@@ -274,16 +274,19 @@ def corner_cotangents(V: np.ndarray, fi: np.ndarray, nxt: np.ndarray, prv: np.nd
     Returns ``cot_p, cot_c, cot_n`` (angles at prev, curr, next), twice the
     area ``dbl``, and the squared lengths ``l_prev`` (curr–prev), ``l_next``
     (curr–next), ``l_skip`` (prev–next).  Zero-area rows give 0, never inf.
+    Computed component by component on contiguous arrays.
     """
-    E = V[fi[nxt]] - V[fi]                 # half-edge vector of every corner (curr -> next)
-    Ep = E[prv]                             # prev -> curr
-    l_next = np.einsum("ij,ij->i", E, E)
+    Vt = V.T
+    ex, ey, ez = (Vt[k][fi[nxt]] - Vt[k][fi] for k in range(3))   # curr -> next, per corner
+    px, py, pz = ex[prv], ey[prv], ez[prv]                          # prev -> curr
+    l_next = ex * ex + ey * ey + ez * ez
     l_prev = l_next[prv]
-    dot = -np.einsum("ij,ij->i", Ep, E)     # (prev - curr) · (next - curr)
-    cr = np.cross(Ep, E)
-    dbl = np.sqrt(np.einsum("ij,ij->i", cr, cr))
-    ok = dbl > 0
-    inv = np.divide(1.0, dbl, out=np.zeros_like(dbl), where=ok)
+    dot = -(px * ex + py * ey + pz * ez)                            # (prev - curr) · (next - curr)
+    cx = py * ez - pz * ey
+    cy = pz * ex - px * ez
+    cz = px * ey - py * ex
+    dbl = np.sqrt(cx * cx + cy * cy + cz * cz)
+    inv = np.divide(1.0, dbl, out=np.zeros_like(dbl), where=dbl > 0)
     cot_c = dot * inv
     cot_p = (l_prev - dot) * inv
     cot_n = (l_next - dot) * inv

@@ -1,0 +1,155 @@
+"""Benchmark of the flow (issue 4): shapeflow against Blender's own modifier, same run.
+
+    python benchmarks/bench_flow.py            # everything (Blender too when bpy imports)
+    python benchmarks/bench_flow.py --quick    # skip the 1M-vertex case and Blender
+
+Prints medians over ``--repeat`` runs and ratios.  Times exclude file I/O;
+"fresh" includes building the Mesh from arrays (validation, topology, operator
+pattern), "warm" reuses a Mesh whose topology is cached (as in an interactive
+session or a λ family).  The 1M-vertex case runs in a child process so its peak
+memory (ru_maxrss) can be reported.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+CACHE = HERE / ".cache"
+sys.path.insert(0, str(HERE))
+
+import shapeflow as sf  # noqa: E402
+
+
+def median_time(fn, repeat: int) -> tuple[float, object]:
+    times, out = [], None
+    for _ in range(repeat):
+        t0 = time.perf_counter()
+        out = fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), out
+
+
+def suzanne_sub4():
+    """Suzanne subdivided 4 times (126,290 vertices, all quads).
+
+    Blender's own (cached by blender_ref when bpy is installed), else our
+    Catmull-Clark of the fixture Suzanne (same connectivity).
+    """
+    cached = CACHE / "suzanne_sub4.npz"
+    if cached.exists():
+        d = np.load(cached)
+        return d["vertices"], d["face_sizes"], d["face_indices"], "Blender subsurf (cached)"
+    import blender_ref
+
+    if blender_ref.available():
+        v, s, i = blender_ref.suzanne_sub4()
+        return v, s, i, "Blender subsurf"
+    shared = HERE.parent.parent / "shared" / "fixtures" / "blender" / "meshes" / "suzanne.npz"
+    d = np.load(shared)
+    m = sf.subdivide(sf.Mesh.from_csr(d["vertices"], d["face_sizes"], d["face_indices"]), 4)
+    return m.vertices, m.face_sizes, m.face_indices, "shapeflow Catmull-Clark of the fixture Suzanne"
+
+
+def million_mesh():
+    """~1.08M vertices: the AmO triangle mesh, Catmull-Clark twice (all quads)."""
+    cached = CACHE / "million.npz"
+    if cached.exists():
+        d = np.load(cached)
+        return sf.Mesh.from_csr(d["vertices"], d["face_sizes"], d["face_indices"])
+    src = HERE.parent.parent / "shared" / "meshes" / "amo_large_tri.obj"
+    m = sf.subdivide(sf.load(src), 2)
+    CACHE.mkdir(exist_ok=True)
+    np.savez(cached, vertices=m.vertices, face_sizes=m.face_sizes, face_indices=m.face_indices)
+    return m
+
+
+def child_million(repeat: int) -> dict:
+    """Runs in a child process: 1M-vertex flow, fresh, and peak memory."""
+    m = million_mesh()
+    V, S, I = m.vertices, m.face_sizes, m.face_indices
+    del m
+    base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    t, out = median_time(lambda: sf.flow(sf.Mesh.from_csr(V, S, I), 1.0), repeat)
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    return {"n": int(V.shape[0]), "seconds": t, "peak_mb": peak / 1024, "before_mb": base / 1024,
+            "solver": out.report.solver, "cg": out.report.cg_iterations}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--quick", action="store_true", help="skip the 1M-vertex case and Blender")
+    ap.add_argument("--no-blender", action="store_true")
+    ap.add_argument("--child-million", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.child_million:
+        print(json.dumps(child_million(args.repeat)))
+        return 0
+
+    R = args.repeat
+    V, S, I, origin = suzanne_sub4()
+    print(f"Suzanne subdivided 4x: {V.shape[0]:,} vertices, {S.size:,} faces ({origin}); medians of {R} runs")
+    rows = []
+
+    def row(label, seconds, extra=""):
+        rows.append((label, seconds))
+        print(f"  {label:<52s} {seconds * 1e3:9.1f} ms  {extra}")
+
+    t_fresh, out = median_time(lambda: sf.flow(sf.Mesh.from_csr(V, S, I), 1.0), R)
+    row("flow λ=1, 1 iteration, fresh mesh (all included)", t_fresh, f"[{out.report.solver}, CG {out.report.cg_iterations}]")
+    warm = sf.Mesh.from_csr(V, S, I)
+    sf.flow(warm, 1.0)
+    t_warm, out = median_time(lambda: sf.flow(warm, 1.0), R)
+    row("flow λ=1, 1 iteration, warm topology", t_warm)
+    t10, out10 = median_time(lambda: sf.flow(warm, 1.0, iterations=10), R)
+    row("flow λ=1, 10 iterations (fixed operator), warm", t10, f"= {t10 / t_warm:.2f}x one iteration [{out10.report.solver}]")
+    for lam in (-10.0, -100.0):
+        t, o = median_time(lambda: sf.flow(warm, lam), R)
+        row(f"flow λ={lam:g}, 1 iteration, warm", t, f"[{o.report.solver}, CG {o.report.cg_iterations}]")
+    for solver in ("cg", "cholesky", "lu"):
+        if solver == "cholesky" and not sf.solvers.cholesky_available():
+            continue
+        for lam in (1.0, -100.0):
+            t, o = median_time(lambda: sf.flow(warm, lam, solver=solver), max(1, R // 2) if solver != "cg" else R)
+            row(f"  solver={solver:<8s} λ={lam:g}, warm", t)
+    tb, _ = median_time(lambda: sf.flow(warm, 1.0, compat="blender"), R)
+    row("flow λ=1 compat='blender', warm", tb)
+
+    import blender_ref
+
+    if not (args.quick or args.no_blender) and blender_ref.available():
+        pos, t_blender = blender_ref.laplacian_smooth(V, S, I, lambda_factor=1.0, iterations=1,
+                                                      use_normalized=True, repeat=3)
+        ours = sf.flow(sf.Mesh.from_csr(V, S, I), 1.0, compat="blender").vertices
+        err = np.abs(ours - pos).max() / np.linalg.norm(np.ptp(V, axis=0))
+        print(f"  {'Blender 5.0.1 Laplacian Smooth, λ=1, 1 iteration':<52s} {t_blender * 1e3:9.1f} ms  (median of 3)")
+        print(f"  ratio Blender / shapeflow fresh: {t_blender / t_fresh:.1f}x, warm: {t_blender / t_warm:.1f}x; "
+              f"compat='blender' agrees to {err:.1e} x diagonal")
+    else:
+        print("  Blender: not measured (bpy not importable or --quick/--no-blender)")
+
+    if not args.quick:
+        res = subprocess.run([sys.executable, __file__, "--child-million", "--repeat", str(max(1, R // 2))],
+                             capture_output=True, text=True)
+        if res.returncode == 0:
+            d = json.loads(res.stdout.strip().splitlines()[-1])
+            print(f"1M-vertex case: {d['n']:,} vertices (AmO, Catmull-Clark x2): flow λ=1 fresh "
+                  f"{d['seconds']:.2f} s, peak RSS {d['peak_mb']:.0f} MB (mesh alone {d['before_mb']:.0f} MB) "
+                  f"[{d['solver']}, CG {d['cg']}]")
+        else:
+            print("1M-vertex case failed:", res.stderr.strip().splitlines()[-1:])
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
