@@ -28,6 +28,9 @@ _LAZY = {
     "load": "io", "save": "io", "load_weights": "io", "save_weights": "io",
     "load_example": "examples", "example_path": "examples",
     "subdivide": "subdivision", "subdivision_matrix": "subdivision",
+    "family": "family", "family_meshes": "family",
+    "render": "render", "render_meshes": "render",
+    "Brush": "brush", "InflateBrush": "brush",
 }
 
 

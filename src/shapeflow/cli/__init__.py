@@ -14,7 +14,7 @@ import sys
 from ..errors import OptionalDependencyError, ShapeflowError
 
 #: subcommand modules, in the order ``--help`` lists them
-COMMANDS = ["info", "flow", "subdivide"]  # flow.py registers flow, enhance and smooth
+COMMANDS = ["info", "flow", "subdivide", "family", "brush", "render", "curvature"]  # flow.py registers flow, enhance and smooth
 
 
 def build_parser() -> argparse.ArgumentParser:
