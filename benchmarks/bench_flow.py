@@ -61,13 +61,13 @@ def suzanne_sub4():
 
 
 def million_mesh():
-    """~1.08M vertices: the AmO triangle mesh, Catmull-Clark twice (all quads)."""
+    """~0.94M vertices: the camel triangle mesh after three Catmull-Clark steps (all quads)."""
     cached = CACHE / "million.npz"
     if cached.exists():
         d = np.load(cached)
         return sf.Mesh.from_csr(d["vertices"], d["face_sizes"], d["face_indices"])
-    src = HERE.parent.parent / "shared" / "meshes" / "amo_large_tri.obj"
-    m = sf.subdivide(sf.load(src), 2)
+    src = HERE.parent.parent / "shared" / "meshes" / "camel_tri.obj"
+    m = sf.subdivide(sf.load(src), 3)
     CACHE.mkdir(exist_ok=True)
     np.savez(cached, vertices=m.vertices, face_sizes=m.face_sizes, face_indices=m.face_indices)
     return m
@@ -143,7 +143,7 @@ def main(argv=None) -> int:
                              capture_output=True, text=True)
         if res.returncode == 0:
             d = json.loads(res.stdout.strip().splitlines()[-1])
-            print(f"1M-vertex case: {d['n']:,} vertices (AmO, Catmull-Clark x2): flow λ=1 fresh "
+            print(f"1M-vertex case: {d['n']:,} vertices (camel, Catmull-Clark x3): flow λ=1 fresh "
                   f"{d['seconds']:.2f} s, peak RSS {d['peak_mb']:.0f} MB (mesh alone {d['before_mb']:.0f} MB) "
                   f"[{d['solver']}, CG {d['cg']}]")
         else:

@@ -262,3 +262,17 @@ def test_relative_thresholds_do_not_depend_on_scale(scale):
 def test_bad_scheme_is_a_value_error():
     with pytest.raises(ValueError, match="scheme"):
         sf.cotan_weights(grid(3), scheme="nope")
+
+
+def test_cached_pattern_survives_user_facing_calls():
+    # regression: cotan_weights once rewrote the cached CSR pattern in place
+    m = cube_sphere(5, mix=0.5, seed=3)
+    before = sf.flow(m, -5.0).vertices
+    fresh = sf.Mesh(m.vertices, m.faces_as_lists())
+    for _ in range(2):
+        sf.cotan_weights(m)
+        sf.laplacian(m)
+        sf.mean_curvature(m)
+        sf.vertex_areas(m, "mixed")
+    np.testing.assert_array_equal(sf.flow(m, -5.0).vertices, before)
+    np.testing.assert_array_equal(sf.flow(fresh, -5.0).vertices, before)

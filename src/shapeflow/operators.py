@@ -231,21 +231,32 @@ class _Structure:
         ids = np.arange(1, 2 * P + n + 1, dtype=np.float64)
         pat = sp.csr_matrix((ids, (rows, cols)), shape=(n, n))  # no duplicates: nothing is summed
         entry_at = pat.data.astype(np.int64) - 1
+        # shared by every matrix built on this pattern: read-only, so no scipy
+        # operation can rewrite it in place for everyone
         self.indptr = pat.indptr
         self.indices = pat.indices
+        self.indptr.flags.writeable = False
+        self.indices.flags.writeable = False
         pos_of = np.empty_like(entry_at)
         pos_of[entry_at] = np.arange(entry_at.size)
         self.pos_upper = pos_of[:P]
         self.pos_lower = pos_of[P:2 * P]
         self.pos_diag = pos_of[2 * P:]
 
-    def matrix(self, diag: np.ndarray, off: np.ndarray) -> sp.csr_matrix:
-        """Symmetric CSR matrix with the given diagonal and per-pair values."""
+    def matrix(self, diag: np.ndarray, off: np.ndarray, *, copy_pattern: bool = False) -> sp.csr_matrix:
+        """Symmetric CSR matrix with the given diagonal and per-pair values.
+
+        The index arrays are the shared, read-only pattern unless
+        ``copy_pattern`` (needed before any in-place structural change).
+        """
         data = np.empty(self.indices.size)
         data[self.pos_diag] = diag
         data[self.pos_upper] = off
         data[self.pos_lower] = off
-        return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
+        idx, ptr = (self.indices.copy(), self.indptr.copy()) if copy_pattern else (self.indices, self.indptr)
+        M = sp.csr_matrix((data, idx, ptr), shape=(self.n, self.n), copy=False)
+        M.has_sorted_indices = True
+        return M
 
     def triangles(self):
         """All weighted triangles: (tris (T, 3), cot weights, area weights, corner flag).
@@ -418,9 +429,8 @@ def cotan_weights(mesh, scheme: str = "tqlbo", *, thresholds: str = "relative") 
     (1.0, 0.0, [0.75, 0.75, 0.75, 0.75])
     """
     st, pw, deg, ring, locked, n_bad = _assemble(mesh, scheme, thresholds)
-    K = st.matrix(np.zeros(mesh.n_vertices), pw)
-    K.setdiag(0.0)
-    K.eliminate_zeros()
+    K = st.matrix(np.zeros(mesh.n_vertices), pw, copy_pattern=True)
+    K.eliminate_zeros()  # the explicit zero diagonal (and exact-zero weights)
     return CotanWeights(W=K, degree=deg, ring_area=ring, locked=locked, n_degenerate=n_bad,
                         pairs=st.pairs, pair_weights=pw, scheme=scheme)
 
