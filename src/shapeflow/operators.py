@@ -151,9 +151,8 @@ class _Structure:
         # --- chords: the skip pair (prev, next) of corners of faces with >= 4 corners
         local = np.arange(c) - np.repeat(offs[:-1], sizes)
         ch = np.flatnonzero(cs >= 4)
-        primary = ch[~((cs[ch] == 4) & (local[ch] >= 2))]     # a quad's corners k, k+2 share a diagonal
+        primary = ch[~((cs[ch] == 4) & (local[ch] >= 2))]
         va, vb = fi[prv[primary]], fi[nxt[primary]]
-        keys = [np.minimum(va, vb) * n + np.maximum(va, vb)]
         # --- extra fan triangles of tqlbo n-gons
         xt, xw, xslot_keys, xslot_edge = [], [], [], []
         if scheme == "tqlbo":
@@ -183,27 +182,21 @@ class _Structure:
                     sl_key[:, chord, k] = np.minimum(x, y) * n + np.maximum(x, y)
                 xslot_edge.append(sl_edge.reshape(-1, 3))
                 xslot_keys.append(sl_key.reshape(-1, 3))
-        if xslot_keys:
-            xk = np.concatenate(xslot_keys)
-            keys.append(xk[xk >= 0])
-        allkeys = np.concatenate(keys)
-        pairs = edges
-        chord_pair = np.zeros(0, np.int64)
-        if allkeys.size:
-            ukeys, inv = np.unique(allkeys, return_inverse=True)
-            ekeys = edges[:, 0] * n + edges[:, 1]          # sorted: edges come sorted by key
-            j = np.minimum(np.searchsorted(ekeys, ukeys), max(n_edges - 1, 0))
-            is_edge = ekeys[j] == ukeys if n_edges else np.zeros(ukeys.size, bool)
-            ids = np.where(is_edge, j, 0)
-            new = ~is_edge
-            ids[new] = n_edges + np.arange(int(new.sum()))
-            pairs = np.concatenate([edges, np.stack([ukeys[new] // n, ukeys[new] % n], axis=1)])
-            chord_pair = ids[inv]
-        # pair of each corner's skip chord (quads: corners k and k+2 share one)
+        # Chords are not deduplicated: a chord shared by two faces (or equal to an
+        # edge) is simply two entries of the sparse pattern, which add up in any
+        # product; direct solvers and cotan_weights() canonicalise a copy.
+        n_primary = primary.size
+        chord_ends = [np.stack([np.minimum(va, vb), np.maximum(va, vb)], axis=1)]
+        xk = np.concatenate(xslot_keys) if xslot_keys else np.zeros((0, 3), np.int64)
+        xmask = xk >= 0
+        if xmask.any():
+            k_ = xk[xmask]
+            chord_ends.append(np.stack([k_ // n, k_ % n], axis=1))
+        pairs = np.concatenate([edges] + chord_ends)
         skip_pair = np.full(c, -1, dtype=np.int64)
-        skip_pair[primary] = chord_pair[:primary.size]
+        skip_pair[primary] = n_edges + np.arange(n_primary)
         sec = ch[(cs[ch] == 4) & (local[ch] >= 2)]
-        skip_pair[sec] = skip_pair[sec - 2]
+        skip_pair[sec] = skip_pair[sec - 2]                   # a quad's corners k, k+2 share a diagonal
         tri_c = np.flatnonzero(self.is_tri)
         skip_pair[tri_c] = corner_edge[nxt[tri_c]]            # a triangle's skip pair is an edge
         self.skip_pair = skip_pair
@@ -211,8 +204,7 @@ class _Structure:
             self.extra_tris = np.concatenate(xt)
             self.extra_w = np.concatenate(xw)
             sp_ = np.concatenate(xslot_edge)
-            xk = np.concatenate(xslot_keys)
-            sp_[xk >= 0] = chord_pair[primary.size:]
+            sp_[xmask] = n_edges + n_primary + np.arange(int(xmask.sum()))
             self.extra_pair = sp_
         else:
             self.extra_tris = np.zeros((0, 3), np.int64)
@@ -224,19 +216,17 @@ class _Structure:
         self.nxt = nxt
         self.prv = prv
         self.fi = fi
-        # --- symmetric CSR pattern with diagonal; data[k] = id of the entry at k
+        # --- symmetric CSR pattern with diagonal (duplicates kept, columns sorted)
         P = pairs.shape[0]
         rows = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])
         cols = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)])
-        ids = np.arange(1, 2 * P + n + 1, dtype=np.float64)
-        pat = sp.csr_matrix((ids, (rows, cols)), shape=(n, n))  # no duplicates: nothing is summed
-        entry_at = pat.data.astype(np.int64) - 1
+        indptr, indices, entry_at = _csr_pattern(rows, cols, n)
         # shared by every matrix built on this pattern: read-only, so no scipy
         # operation can rewrite it in place for everyone
-        self.indptr = pat.indptr
-        self.indices = pat.indices
-        self.indptr.flags.writeable = False
-        self.indices.flags.writeable = False
+        indptr.flags.writeable = False
+        indices.flags.writeable = False
+        self.indptr = indptr
+        self.indices = indices
         pos_of = np.empty_like(entry_at)
         pos_of[entry_at] = np.arange(entry_at.size)
         self.pos_upper = pos_of[:P]
@@ -256,6 +246,7 @@ class _Structure:
         idx, ptr = (self.indices.copy(), self.indptr.copy()) if copy_pattern else (self.indices, self.indptr)
         M = sp.csr_matrix((data, idx, ptr), shape=(self.n, self.n), copy=False)
         M.has_sorted_indices = True
+        M.has_canonical_format = False  # a shared chord appears twice
         return M
 
     def triangles(self):
@@ -269,6 +260,33 @@ class _Structure:
         return (tris, np.concatenate([self.corner_w, self.extra_w]),
                 np.concatenate([self.corner_aw, self.extra_w]),
                 np.r_[np.ones(ct.shape[0], bool), np.zeros(self.extra_tris.shape[0], bool)])
+
+
+def _csr_pattern(rows: np.ndarray, cols: np.ndarray, n: int):
+    """CSR layout of (rows, cols) without merging duplicates.
+
+    Returns ``indptr``, ``indices`` (columns sorted within each row) and
+    ``entry_at``: the input entry stored at each CSR position.  Uses SciPy's
+    O(nnz) counting sort (``coo_tocsr``) and per-row sort; falls back to a
+    NumPy lexsort if that internal routine is unavailable.
+    """
+    nnz = rows.size
+    itype = np.int32 if max(n, nnz) < 2**31 - 1 else np.int64
+    try:
+        from scipy.sparse._sparsetools import coo_tocsr
+    except ImportError:  # pragma: no cover - SciPy internals moved
+        order = np.lexsort((cols, rows))
+        indptr = np.zeros(n + 1, dtype=itype)
+        np.cumsum(np.bincount(rows, minlength=n), out=indptr[1:])
+        return indptr, cols[order].astype(itype), order
+    indptr = np.empty(n + 1, dtype=itype)
+    indices = np.empty(nnz, dtype=itype)
+    ids = np.empty(nnz, dtype=np.int64)
+    coo_tocsr(n, n, nnz, rows.astype(itype), cols.astype(itype), np.arange(nnz, dtype=np.int64),
+              indptr, indices, ids)
+    M = sp.csr_matrix((ids, indices, indptr), shape=(n, n), copy=False)
+    M.sort_indices()  # per row, C++; permutes ids along
+    return M.indptr, M.indices, M.data
 
 
 def _structure(mesh, scheme: str) -> _Structure:
@@ -328,7 +346,9 @@ class CotanWeights:
         Vertices touching a degenerate element; the flow keeps them fixed.
     n_degenerate : int
         Number of weighted triangles excluded from W.
-    pair_weights : (P,) float64 and pairs (P, 2): W as a pair list.
+    pairs, pair_weights : (P, 2), (P,)
+        W as a pair list (a pair may repeat when two faces share a chord;
+        repeated weights add up).
     """
 
     W: sp.csr_matrix
@@ -430,6 +450,7 @@ def cotan_weights(mesh, scheme: str = "tqlbo", *, thresholds: str = "relative") 
     """
     st, pw, deg, ring, locked, n_bad = _assemble(mesh, scheme, thresholds)
     K = st.matrix(np.zeros(mesh.n_vertices), pw, copy_pattern=True)
+    K.sum_duplicates()   # a chord shared by two faces becomes one entry
     K.eliminate_zeros()  # the explicit zero diagonal (and exact-zero weights)
     return CotanWeights(W=K, degree=deg, ring_area=ring, locked=locked, n_degenerate=n_bad,
                         pairs=st.pairs, pair_weights=pw, scheme=scheme)

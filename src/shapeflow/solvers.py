@@ -112,7 +112,8 @@ class SPDSolver:
 
     def _factorize(self) -> None:
         self.stats.factorizations += 1
-        A = self.A
+        A = self.A.copy()
+        A.sum_duplicates()  # direct solvers need one entry per position
         if self.method == "cholesky":
             import cholespy
 
