@@ -374,7 +374,9 @@ class FlowSolver:
             c = V_after.mean(axis=0)
             vb = signed_volume(mesh, V_before, c)
             va = signed_volume(mesh, V_after, c)
-            if va == 0.0 or vb == 0.0 or (va > 0) != (vb > 0):
+            # a volume at rounding level (flat or open surfaces) carries no information
+            tiny = 1e-12 * float(np.linalg.norm(np.ptp(V_before, axis=0))) ** 3
+            if abs(va) <= tiny or abs(vb) <= tiny or (va > 0) != (vb > 0):
                 report.notes.append("volume preservation skipped (volume is zero or changed sign)")
                 return V_after
             beta = (vb / va) ** (1.0 / k)
@@ -416,6 +418,14 @@ class FlowSolver:
         report.locked = int(report.locked_vertices.size)
         report.degenerate_triangles = op.n_bad
         report.boundary_vertices = int(op.boundary.sum())
+        topo = mesh.topology
+        nm = int(topo.nonmanifold_edge_mask.sum())
+        if nm:
+            report.notes.append(f"{nm} non-manifold edges: their faces all contribute, vertices treated as interior")
+        if preserve_volume:
+            inc = int(topo.inconsistent_edge_mask.sum())
+            if inc:
+                report.notes.append(f"{inc} edges with inconsistent face orientation: the volume being preserved is ill-defined")
         center0 = V0.mean(axis=0)
         n_solves = iterations if update == "fixed" else 1
         V = np.array(V0)
