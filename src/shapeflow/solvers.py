@@ -53,16 +53,18 @@ def estimate_cg_iterations(kappa: float, rtol: float = DEFAULT_RTOL) -> float:
 def choose_method(n: int, kappa: float, n_solves: int, rtol: float = DEFAULT_RTOL) -> str:
     """Pick the back end expected to be fastest.
 
-    Measured on this project's 2-core reference machine (126K-vertex quad
-    mesh, ``benchmarks/bench_flow.py``): one Jacobi-PCG iteration on three
-    columns costs about as much as 1/250 of a cholespy factorisation, and a
-    triangular solve pair about 3 CG iterations.  So CG wins unless the
-    expected total CG iterations exceed ~250 + 3 per solve.
+    Calibrated with ``benchmarks/bench_flow.py`` on this project's 2-core
+    reference machine: on the 126K-vertex Suzanne, a cholespy factorisation
+    costs as much as ~185 Jacobi-PCG iterations on three columns and a pair
+    of triangular solves ~3 iterations; for surface meshes the factorisation
+    grows like n^1.5 and an iteration like n, so the break-even grows like
+    sqrt(n).  CG iterations are estimated from the condition number bound.
     """
     if n < 2000:
         return "lu" if n_solves > 1 or kappa > 1e4 else "cg"
     cg_cost = estimate_cg_iterations(kappa, rtol) * n_solves
-    if cholesky_available() and cg_cost > 250.0 + 3.0 * n_solves:
+    factor_cost = 185.0 * np.sqrt(n / 126_000.0)
+    if cholesky_available() and cg_cost > factor_cost + 3.0 * n_solves:
         return "cholesky"
     return "cg"
 
