@@ -32,6 +32,7 @@ def _add_common(p) -> None:
     p.add_argument("--solver", choices=["auto", "cg", "cholesky", "lu"], default="auto", help="linear solver")
     p.add_argument("--force", action="store_true", help="allow OUTPUT to be the input file (overwrite it)")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress or summary on stderr")
+    p.add_argument("--image", metavar="PNG", help="also draw input and result side by side (needs shapeflow[render])")
 
 
 def register(sub) -> None:
@@ -91,4 +92,7 @@ def run(args) -> int:
         r = result.report
         eprint(f"shapeflow {args.command}: λ={lam:g}, {args.iterations} iteration(s), {mesh.n_vertices} vertices: "
                f"{r.summary()}; total {time.perf_counter() - t0:.3f} s -> {out_path}")
+    if args.image:
+        from ._images import flow_image
+        flow_image(args, mesh, result, lam)
     return 0

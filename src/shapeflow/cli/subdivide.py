@@ -36,6 +36,7 @@ def register(sub) -> None:
                    "line); replaces weights stored in IN")
     p.add_argument("--weights-out", metavar="FILE",
                    help="also write the subdivided weights to FILE (.npy or text)")
+    p.add_argument("--image", metavar="PNG", help="also draw input and result side by side (needs shapeflow[render])")
     p.set_defaults(func=run)
 
 
@@ -89,4 +90,7 @@ def run(args) -> int:
         f"{out.n_vertices} vertices, {out.n_faces} faces "
         f"({args.scheme}, {args.levels} level{'s' if args.levels != 1 else ''}) in {dt:.3f} s"
     )
+    if args.image:
+        from ._images import subdivide_image
+        subdivide_image(args, mesh, out)
     return 0

@@ -1,0 +1,299 @@
+"""Regenerate every picture under ``docs/img/``: the paper's figures on the shared real meshes.
+
+    python docs/gallery.py [FIGURE ...] [--shared DIR] [--out DIR]
+
+FIGURE is any of ``fig1 fig5 fig6 fig7 fig8 fig11`` (default: all).  Needs the
+render extra (``pip install 'shapeflow[render]'``) and the shared meshes
+(``../shared/meshes`` beside the repository, or ``--shared`` /
+``$SHAPEFLOW_SHARED``).  Each picture is saved as a 256-colour dithered PNG to
+keep it small (about 60–130 KB); the script prints what it did and the numbers
+the captions quote.
+
+Figures (numbers from "Shape Enhanced With an Adapted Laplacian Operator For
+Hybrid Quad/Triangle Meshes"):
+
+* fig1  a family of shapes, blue → red — needs ``shapeflow.family``; skipped
+        with a message while that module is missing;
+* fig5  coarse cage → Catmull–Clark → enhancement with weights painted on the cage;
+* fig6  cage → Catmull–Clark → smoothing λ=60, λ_b=12 → enhancement λ=−200, λ_b=12
+        (an open model, so λ_b acts on its boundary);
+* fig7  λ=7, 2 iterations on the triangle, quad and randomly mixed versions of Spot;
+* fig8  camel, λ = −30, −100, −400; weighted enhancement of the legs
+        (λ=−50, 2 iterations) and of the head and neck (λ=−200);
+* fig11 normalised (eq. 10) vs area-normalised (eq. 9) operator, λ=−50, on a
+        model and on the same model scaled by 4.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+import shapeflow as sf
+from shapeflow.render import render_meshes
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+MAX_BYTES = 150_000
+
+
+class Unavailable(RuntimeError):
+    """A figure that cannot be made here (a module or a mesh is missing)."""
+
+
+def shared_dir(arg: str | None) -> Path:
+    for cand in (arg, os.environ.get("SHAPEFLOW_SHARED"), ROOT.parent / "shared", ROOT / "shared"):
+        if cand and (Path(cand) / "meshes").is_dir():
+            return Path(cand)
+    raise SystemExit("shared meshes not found: pass --shared DIR (the folder holding meshes/)")
+
+
+def save_small(path: Path, img: np.ndarray) -> int:
+    """Save as a 256-colour PNG with Floyd–Steinberg dithering (no visible banding); return its size."""
+    from PIL import Image
+
+    im = Image.fromarray(img).convert("RGB")
+    palette = im.quantize(colors=256, method=Image.Quantize.MEDIANCUT)
+    im.quantize(palette=palette, dither=Image.Dither.FLOYDSTEINBERG).save(path, optimize=True)
+    size = path.stat().st_size
+    if size > MAX_BYTES:
+        print(f"  warning: {path.name} is {size / 1e3:.0f} KB (> {MAX_BYTES / 1e3:.0f} KB)")
+    return size
+
+
+def load(meshes: Path, name: str) -> sf.Mesh:
+    p = meshes / f"{name}.obj"
+    if not p.exists():
+        raise Unavailable(f"{p} is missing")
+    return sf.load(p)
+
+
+def subdivide(mesh: sf.Mesh, levels: int, **kw) -> sf.Mesh:
+    try:
+        return sf.subdivide(mesh, levels, **kw)
+    except (ImportError, AttributeError) as exc:
+        raise Unavailable(f"needs shapeflow.subdivide ({exc})") from None
+
+
+def height_weights(v: np.ndarray, lo: float, hi: float) -> np.ndarray:
+    """Weights from a coordinate: 0 at ``lo``, 1 at ``hi``, a linear ramp between (either order)."""
+    return np.clip((v - lo) / (hi - lo), 0.0, 1.0)
+
+
+# --------------------------------------------------------------------------
+# figures
+
+def figure1_family(meshes: Path, out: Path) -> str:
+    """FIGURE 1 (family strip) — HOOK, to be completed by whoever lands ``shapeflow.family``.
+
+    Meant to show: a family of 48 shapes, λ = 0 … −240 in steps of −5, one
+    solve, coloured blue (λ=0) → red (λ=−240), with
+    ``shapeflow.cli._images.family_image`` (an evenly spaced subset of the
+    members in a strip).  Until ``shapeflow.family`` exists this raises
+    :class:`Unavailable`, and nothing is faked with repeated ``flow`` calls.
+    """
+    try:
+        from shapeflow.family import family_meshes
+    except ImportError as exc:
+        raise Unavailable(f"figure 1 needs shapeflow.family, which is not there yet ({exc})") from None
+    from shapeflow.cli._images import family_image
+
+    spot = load(meshes, "spot_quad")
+    lams = [-5.0 * i for i in range(49)]                      # 0 … −240
+    members = family_meshes(spot, lams)
+    path = out / "fig1_family.png"
+    family_image(str(path), members, lams, view=(-140, 20), max_panels=12, quiet=True)
+    from PIL import Image
+
+    with Image.open(path) as im:
+        kb = save_small(path, np.asarray(im.convert("RGB"))) / 1e3
+    return f"{path.name} ({kb:.0f} KB): {len(lams)} members, λ = 0 … −240 (12 drawn)"
+
+
+def figure5_cage(meshes: Path, out: Path) -> str:
+    """Weights painted on Spot's hybrid cage (triangles, quads, pentagons: head = 1), carried
+    through 3 Catmull–Clark levels (smooth weight rule), then weighted enhancement."""
+    cage = load(meshes, "spot_control_hybrid")
+    y = cage.vertices[:, 1]
+    w = (y >= y.min() + 0.65 * np.ptp(y)).astype(float)     # the top 35 % of the height: the head
+    cage = cage.with_weights(w)
+    fine = subdivide(cage, 3, weights_rule="smooth")
+    lams = (-100.0, -300.0, -600.0)
+    res = [sf.flow(fine, lam, weights="weight") for lam in lams]
+    img = render_meshes(
+        [cage, fine, *res], None,
+        labels=["cage + weights", "Catmull-Clark ×3", *(f"weighted λ={lam:g}" for lam in lams)],
+        color=["weights", "weights", "none", "none", "none"], edges=[True, False, False, False, False],
+        shading=["flat", "smooth", "smooth", "smooth", "smooth"], view=(-140, 20), size=(260, 290))
+    path = out / "fig5_cage_subdivision_weights.png"
+    kb = save_small(path, img) / 1e3
+    c = cage.face_count_by_size()
+    return (f"{path.name} ({kb:.0f} KB): cage {cage.n_vertices} vertices ({c.get(3, 0)} tri, {c.get(4, 0)} quad, "
+            f"{c.get(5, 0)} pentagons), {int(w.sum())} weighted; Catmull-Clark ×3: {fine.n_vertices} vertices")
+
+
+def figure6_smooth_enhance(meshes: Path, out: Path) -> str:
+    """The open rook cage (triangles + quads, open base): Catmull–Clark ×2, smoothing
+    λ=60, λ_b=12, then enhancement λ=−200, λ_b=12. The last two are coloured by how far
+    each step moved the surface along its normal (blue inwards, red outwards)."""
+    cage = load(meshes, "rook_cage_hybrid_open")
+    cc = subdivide(cage, 2)
+    smooth = sf.flow(cc, 60.0, lam_border=12.0)
+    enh = sf.flow(smooth, -200.0, lam_border=12.0)
+    img = render_meshes(
+        [cage, cc, smooth, enh], None,
+        labels=["cage", "Catmull-Clark ×2", "smoothed: λ=60, λb=12", "enhanced: λ=-200, λb=12"],
+        color=["none", "none", "displacement", "displacement"], reference=[None, None, cc, smooth],
+        edges=[True, False, False, False], shading=["flat", "smooth", "smooth", "smooth"],
+        view=(30, 20), up="z", size=(300, 330))
+    path = out / "fig6_smooth_then_enhance.png"
+    kb = save_small(path, img) / 1e3
+    d1 = np.linalg.norm(smooth.vertices - cc.vertices, axis=1).max() / cc.diagonal
+    d2 = np.linalg.norm(enh.vertices - smooth.vertices, axis=1).max() / cc.diagonal
+    return (f"{path.name} ({kb:.0f} KB): {cc.n_vertices} vertices; max move smooth {d1:.3f}, "
+            f"enhance {d2:.3f} (× diagonal)")
+
+
+def half_triangulated(quads: sf.Mesh, seed: int = 7) -> sf.Mesh:
+    """Split a random half of the quads into two triangles, along a random diagonal."""
+    rng = np.random.default_rng(seed)
+    F = quads.face_indices.reshape(-1, 4)
+    split = rng.random(len(F)) < 0.5
+    diag = rng.random(len(F)) < 0.5
+    a, b = split & diag, split & ~diag
+    tris = np.concatenate([F[a][:, [0, 1, 2]], F[a][:, [0, 2, 3]], F[b][:, [0, 1, 3]], F[b][:, [1, 2, 3]]])
+    keep = F[~split]
+    sizes = np.r_[np.full(len(keep), 4), np.full(len(tris), 3)]
+    return sf.Mesh.from_csr(quads.vertices, sizes, np.r_[keep.ravel(), tris.ravel()])
+
+
+def figure7_tri_quad_mixed(meshes: Path, out: Path) -> str:
+    """λ=7, 2 iterations on spot_tri, spot_quad and a randomly half-triangulated spot_quad
+    (the same vertices): the results look alike. Top: inputs with their edges; bottom:
+    results coloured by their displacement along the input normals."""
+    quad = load(meshes, "spot_quad")
+    tri = load(meshes, "spot_tri")
+    if tri.n_vertices != quad.n_vertices or not np.array_equal(tri.vertices, quad.vertices):
+        raise Unavailable("spot_tri and spot_quad no longer share their vertices")
+    mixed = half_triangulated(quad)
+    inputs = [tri, quad, mixed]
+    res = [sf.flow(m, 7.0, iterations=2) for m in inputs]
+    names = ["triangles", "quads", "mixed"]
+    c = mixed.face_count_by_size()
+    img = render_meshes(
+        inputs + res, None, grid=(2, 3),
+        labels=[f"triangles ({tri.n_faces})", f"quads ({quad.n_faces})", f"mixed ({c[3]} tri + {c[4]} quad)"]
+        + [f"λ=7, 2 iterations: {n}" for n in names],
+        color=["none"] * 3 + ["displacement"] * 3, reference=quad, edges=[True] * 3 + [False] * 3,
+        view=(-140, 20), size=(300, 300))
+    path = out / "fig7_tri_quad_mixed.png"
+    kb = save_small(path, img) / 1e3
+    moved = max(np.linalg.norm(r.vertices - quad.vertices, axis=1).max() for r in res)
+    gap = max(np.linalg.norm(res[i].vertices - res[j].vertices, axis=1).max() for i, j in ((0, 1), (0, 2), (1, 2)))
+    return (f"{path.name} ({kb:.0f} KB): max displacement {moved / quad.diagonal:.4f}, max difference between the "
+            f"three results {gap / quad.diagonal:.4f} (× diagonal)")
+
+
+def figure8_camel(meshes: Path, out: Path) -> str:
+    """Camel: λ = −30, −100, −400 (top row); weights from height thresholds and weighted
+    enhancement of the legs (λ=−50, 2 iterations) and of the head and neck (λ=−200)."""
+    camel = load(meshes, "camel_tri")
+    V = camel.vertices
+    lams = (-30.0, -100.0, -400.0)
+    top = [sf.flow(camel, lam) for lam in lams]
+    legs_w = height_weights(V[:, 1], -0.10, -0.18)                     # y: legs below the belly
+    head_w = height_weights(V[:, 1], 0.02, 0.12) * height_weights(V[:, 2], 0.10, 0.20)  # high and in front
+    legs_m, head_m = camel.with_weights(legs_w), camel.with_weights(head_w)
+    legs = sf.flow(legs_m, -50.0, iterations=2, weights="weight")
+    head = sf.flow(head_m, -200.0, weights="weight")
+    img = render_meshes(
+        [camel, *top, legs_m, legs, head_m, head], None, grid=(2, 4),
+        labels=["camel", *(f"λ={lam:g}" for lam in lams), "weights: legs", "legs: λ=-50, 2 iterations",
+                "weights: head and neck", "head and neck: λ=-200"],
+        color=["none"] * 4 + ["weights", "none", "weights", "none"], view=(60, 12), size=(290, 290),
+        framing="rows")
+    path = out / "fig8_camel.png"
+    kb = save_small(path, img) / 1e3
+    return (f"{path.name} ({kb:.0f} KB): {camel.n_vertices} vertices; weighted vertices: legs "
+            f"{int((legs_w > 0).sum())}, head and neck {int((head_w > 0).sum())}")
+
+
+def figure11_normalisation(meshes: Path, out: Path) -> str:
+    """Spot scaled so that its mean edge length is 1 (×1) and 4 times larger (×4); λ=−50 with the
+    normalised operator (eq. 10, the default) and the area-normalised one (eq. 9,
+    normalized=False). Each row is framed with one camera, so sizes compare within a row."""
+    from shapeflow.geometry import mean_edge_length
+
+    spot = load(meshes, "spot_quad")
+    c = spot.vertices.mean(axis=0)
+    s = 1.0 / mean_edge_length(spot)
+    row = []
+    notes = []
+    for k in (4.0, 1.0):
+        m = spot.with_vertices((spot.vertices - c) * s * k)
+        a = sf.flow(m, -50.0)
+        b = sf.flow(m, -50.0, normalized=False)
+        row += [m, a, b]
+        move = [np.linalg.norm(r.vertices - m.vertices, axis=1).max() / m.diagonal for r in (a, b)]
+        notes.append(f"×{k:g}: max move normalised {move[0]:.3f}, area-normalised {move[1]:.3f}")
+    img = render_meshes(
+        row, None, grid=(2, 3), framing="rows",
+        labels=["×4", "×4, normalised λ=-50", "×4, area-normalised λ=-50",
+                "×1 (mean edge 1)", "×1, normalised λ=-50", "×1, area-normalised λ=-50"],
+        color="none", view=(-140, 20), size=(290, 280))
+    path = out / "fig11_normalised_vs_area.png"
+    kb = save_small(path, img) / 1e3
+    return f"{path.name} ({kb:.0f} KB): " + "; ".join(notes) + " (× diagonal)"
+
+
+FIGURES = {
+    "fig1": figure1_family,
+    "fig5": figure5_cage,
+    "fig6": figure6_smooth_enhance,
+    "fig7": figure7_tri_quad_mixed,
+    "fig8": figure8_camel,
+    "fig11": figure11_normalisation,
+}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description="Regenerate docs/img/ (the README gallery).")
+    ap.add_argument("figures", nargs="*", metavar="FIGURE",
+                    help=f"which figures ({', '.join(FIGURES)}; default all)")
+    ap.add_argument("--shared", help="folder holding meshes/ (default ../shared beside the repository)")
+    ap.add_argument("--out", default=str(HERE / "img"), help="output folder (default docs/img)")
+    a = ap.parse_args(argv)
+    unknown = [f for f in a.figures if f not in FIGURES]
+    if unknown:
+        ap.error(f"unknown figure(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
+    from shapeflow.render import available
+
+    if not available():
+        print("rendering is not available: pip install 'shapeflow[render]'", file=sys.stderr)
+        return 1
+    meshes = shared_dir(a.shared) / "meshes"
+    out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
+    failed = 0
+    for name in a.figures or list(FIGURES):
+        t0 = time.perf_counter()
+        try:
+            msg = FIGURES[name](meshes, out)
+        except Unavailable as exc:
+            print(f"{name}: skipped: {exc}")
+            continue
+        except Exception as exc:  # keep going: report every figure
+            failed += 1
+            print(f"{name}: FAILED: {type(exc).__name__}: {exc}")
+            continue
+        print(f"{name}: {msg} [{time.perf_counter() - t0:.1f} s]")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,80 @@
+"""The ``--image FILE`` pictures of the shape-changing commands (needs ``shapeflow[render]``).
+
+Each command calls one function here at the end of its ``run()``:
+
+* ``flow`` / ``enhance`` / ``smooth``: :func:`flow_image` (before | after, coloured by
+  mean curvature with one shared range, so stronger features show as stronger colour);
+* ``subdivide``: :func:`subdivide_image` (cage | subdivided, with polygon edges);
+* ``family`` (figure 1 of the paper) can use :func:`family_image` (blue → red strip);
+* ``brush`` can use :func:`before_after`.
+"""
+
+from __future__ import annotations
+
+from ._common import eprint
+
+#: default picture settings for the before/after images
+VIEW = "iso"
+PANEL = (480, 440)
+
+
+def _check(path: str) -> str:
+    from .render import check_png
+
+    return check_png(path, "--image")
+
+
+def before_after(path: str, before, after, *, label_before: str = "input", label_after: str = "result",
+                 color="curvature", edges=False, shading="smooth", view=VIEW, up: str = "y",
+                 quiet: bool = False) -> None:
+    """Write ``before`` and ``after`` side by side with one camera (and one colour range).
+
+    ``edges`` and ``shading`` may be one value or a pair (before, after)."""
+    from ..render import render_meshes
+
+    _check(path)
+    render_meshes([before, after], path, labels=[label_before, label_after], color=color, edges=edges,
+                  shading=shading, view=view, up=up, size=PANEL)
+    if not quiet:
+        eprint(f"image -> {path}")
+
+
+def flow_image(args, before, after, lam: float) -> None:
+    """``--image`` of flow/enhance/smooth: input and result coloured by mean curvature."""
+    what = "smoothed" if lam > 0 else "enhanced"
+    n = getattr(args, "iterations", 1)
+    label = f"{what}, λ={lam:g}" + (f", {n} iterations" if n != 1 else "")
+    before_after(args.image, before, after, label_before="input", label_after=label,
+                 quiet=getattr(args, "quiet", False))
+
+
+def subdivide_image(args, before, after) -> None:
+    """``--image`` of subdivide: cage and subdivided mesh with their polygon edges."""
+    levels = getattr(args, "levels", 1)
+    scheme = getattr(args, "scheme", "catmull-clark")
+    before_after(args.image, before, after, label_before=f"input ({before.n_faces} faces)",
+                 label_after=f"{scheme}, {levels} level{'s' if levels != 1 else ''} ({after.n_faces} faces)",
+                 color="none", edges=True, shading=["flat", "smooth"], quiet=getattr(args, "quiet", False))
+
+
+def family_image(path: str, meshes, lams, *, view=VIEW, up: str = "y", max_panels: int = 12,
+                 quiet: bool = False) -> None:
+    """Figure 1 of the paper: a family of shapes in one strip, coloured blue (first) → red (last).
+
+    With more than ``max_panels`` shapes an evenly spaced subset is drawn
+    (first and last always included).
+    """
+    import numpy as np
+
+    from ..render import family_colors, render_meshes
+
+    _check(path)
+    meshes, lams = list(meshes), list(lams)
+    idx = np.unique(np.round(np.linspace(0, len(meshes) - 1, min(len(meshes), max_panels))).astype(int))
+    cols = family_colors(len(meshes))
+    rows = 1 if len(idx) <= 6 else 2
+    render_meshes([meshes[i] for i in idx], path, colors=[cols[i] for i in idx],
+                  labels=[f"λ={lams[i] + 0.0:g}" for i in idx], grid=(rows, int(np.ceil(len(idx) / rows))),
+                  view=view, up=up, size=(260, 280))
+    if not quiet:
+        eprint(f"image -> {path}")
