@@ -116,7 +116,7 @@ def resolve_weights(mesh: Mesh, weights, invert: bool = False) -> np.ndarray:
     bad = np.flatnonzero(~np.isfinite(w) | (w < 0) | (w > 1))
     if bad.size:
         i = int(bad[0])
-        raise ParameterError(f"weights must lie in [0, 1]; vertex {i} has {w[i]!r} ({bad.size} such vertices)")
+        raise ParameterError(f"weights must lie in [0, 1]; vertex {i} has {float(w[i])!r} ({bad.size} such vertices)")
     return 1.0 - w if invert else w.copy()
 
 

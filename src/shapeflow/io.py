@@ -238,11 +238,11 @@ def _check_weights(name: str, w: np.ndarray, n: int, where) -> np.ndarray:
     bad = np.flatnonzero(~np.isfinite(w))
     if bad.size:
         i = int(bad[0])
-        raise MeshError(f"{name}: {where(i)}: weight of vertex {i} is not finite ({w[i]!r})")
+        raise MeshError(f"{name}: {where(i)}: weight of vertex {i} is not finite ({float(w[i])!r})")
     bad = np.flatnonzero((w < 0) | (w > 1))
     if bad.size:
         i = int(bad[0])
-        raise MeshError(f"{name}: {where(i)}: weight of vertex {i} is {w[i]!r}, outside [0, 1] "
+        raise MeshError(f"{name}: {where(i)}: weight of vertex {i} is {float(w[i])!r}, outside [0, 1] "
                         f"({bad.size} such values)")
     return w
 

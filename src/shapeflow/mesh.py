@@ -154,7 +154,7 @@ def _as_attribute(name: str, values, n: int) -> np.ndarray:
         out = np.flatnonzero((a < 0) | (a > 1))
         if out.size:
             i = int(out[0])
-            raise MeshError(f"weights must lie in [0, 1]; vertex {i} has {a[i]!r} ({out.size} such vertices)")
+            raise MeshError(f"weights must lie in [0, 1]; vertex {i} has {float(a[i])!r} ({out.size} such vertices)")
     a.flags.writeable = False
     return a
 
