@@ -1,0 +1,208 @@
+"""``shapeflow family IN OUTDIR --from 0 --to -240 --step -5``: one mesh per λ (figure 1).
+
+The members come from :func:`shapeflow.family` (one shared multi-shift solve
+where the flow options allow it).  File names carry the member's position and
+its λ with a fixed width, e.g. ``spot_00_lam+000.0.ply`` …
+``spot_47_lam-235.0.ply``, so a plain sort lists them in family order.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import ParameterError
+from ._common import eprint, load_mesh_arg, progress_callback, save_mesh
+from .flow import _add_common, flow_kwargs
+
+#: members solved in one batch are held in memory together; above this many
+#: bytes of positions the family is solved in batches (in order of |λ|)
+BATCH_BYTES = 512 * 2 ** 20
+MAX_MEMBERS = 100_000
+FORMATS = ("ply", "obj", "off")
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "family", help="a family of shapes, one mesh per λ, from one shared solve (figure 1)",
+        description="Run the flow for a range of λ (like Python's range: --to is excluded) and write "
+                    "one mesh per λ into OUTDIR.  With one iteration all members share a single "
+                    "multi-shift CG solve (about the cost of the largest |λ| alone); otherwise each λ "
+                    "is solved on one shared operator.  Flow options as for 'shapeflow flow'.",
+        epilog="Figure 1 of the paper: shapeflow family IN OUTDIR --from 0 --to -240 --step -5 "
+               "(48 members, λ = 0, -5, ..., -235).")
+    _add_common(p)
+    _retitle(p, "output", metavar="OUTDIR",
+             help="directory for the members (created if missing); files NAME_INDEX_lamVALUE.EXT")
+    _retitle(p, "force", help="overwrite member files that already exist in OUTDIR")
+    g = p.add_argument_group("the λ of the members")
+    g.add_argument("--from", dest="lam_from", type=float, default=None, metavar="A",
+                   help="first λ (default 0 with --to/--step)")
+    g.add_argument("--to", dest="lam_to", type=float, default=None, metavar="B",
+                   help="end of the range, excluded (like range())")
+    g.add_argument("--step", dest="lam_step", type=float, default=None, metavar="S",
+                   help="increment, non-zero, pointing from A to B (e.g. -5)")
+    g.add_argument("--lambdas", default=None, metavar="L1,L2,...",
+                   help="explicit comma-separated list of λ instead of --from/--to/--step")
+    p.add_argument("--name", default=None, help="file name prefix (default: the input's name)")
+    p.add_argument("--format", choices=FORMATS, default=None,
+                   help="output format (default: the input's if OBJ/PLY/OFF, else ply)")
+    p.add_argument("--strategy", choices=["auto", "multishift", "separate"], default="auto",
+                   help="auto: shared solve where the shift structure holds (default); multishift: "
+                        "insist on it; separate: one solve per λ")
+    p.set_defaults(func=run)
+
+
+def _retitle(parser, dest: str, **kw) -> None:
+    """Change the help (or metavar) of an option that ``_add_common`` defined."""
+    for action in parser._actions:
+        if action.dest == dest:
+            for key, value in kw.items():
+                setattr(action, key, value)
+            return
+
+
+def _number(name: str, text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise ParameterError(f"{name}: {text!r} is not a number") from None
+    if not math.isfinite(v):
+        raise ParameterError(f"{name} must be finite, got {text}")
+    return v
+
+
+def lams_from_args(args) -> list[float]:
+    """The members' λ from --lambdas or --from/--to/--step (end excluded)."""
+    ranged = any(x is not None for x in (args.lam_from, args.lam_to, args.lam_step))
+    if args.lambdas is not None:
+        if ranged:
+            raise ParameterError("give either --lambdas or --from/--to/--step, not both")
+        parts = [s.strip() for s in args.lambdas.split(",")]
+        if not any(parts):
+            raise ParameterError("--lambdas is empty")
+        lams = [_number("--lambdas", s) for s in parts if s]
+    else:
+        if args.lam_to is None or args.lam_step is None:
+            raise ParameterError("give the λ of the members: --to and --step (with --from, default 0), "
+                                 "or --lambdas")
+        a = 0.0 if args.lam_from is None else _number("--from", str(args.lam_from))
+        b = _number("--to", str(args.lam_to))
+        s = _number("--step", str(args.lam_step))
+        if s == 0.0:
+            raise ParameterError("--step must not be 0")
+        count = math.ceil((b - a) / s - 1e-9)
+        if count <= 0:
+            raise ParameterError(f"--from {a:g} --to {b:g} --step {s:g} gives no λ "
+                                 "(the step must point from --from towards --to, which is excluded)")
+        if count > MAX_MEMBERS:
+            raise ParameterError(f"--from/--to/--step give {count} members; at most {MAX_MEMBERS}")
+        lams = [a + i * s for i in range(count)]
+        lams = [float(f"{x:.12g}") for x in lams]          # 0.1 + 2*0.1 -> 0.3, not 0.30000000000000004
+    if len(lams) > MAX_MEMBERS:
+        raise ParameterError(f"{len(lams)} members; at most {MAX_MEMBERS}")
+    return [0.0 if x == 0 else x for x in lams]            # no "-0"
+
+
+def _decimals(lams) -> int:
+    for d in range(1, 7):
+        if all(abs(round(x, d) - x) <= 1e-9 * max(1.0, abs(x)) for x in lams):
+            return d
+    return 6
+
+
+def member_names(stem: str, lams, ext: str) -> list[str]:
+    """``STEM_INDEX_lam±VALUE.EXT`` with fixed widths (a plain sort gives the family order)."""
+    d = _decimals(lams)
+    width_i = len(str(len(lams) - 1))
+    int_digits = max(3, len(str(int(max(abs(x) for x in lams)))))
+    width_v = 1 + int_digits + 1 + d                         # sign, digits, point, decimals
+    return [f"{stem}_{i:0{width_i}d}_lam{x:+0{width_v}.{d}f}.{ext}" for i, x in enumerate(lams)]
+
+
+def _output_format(args) -> str:
+    if args.format:
+        return args.format
+    if not args.input.startswith("example:"):
+        ext = Path(args.input).suffix.lower().lstrip(".")
+        if ext in FORMATS:
+            return ext
+    return "ply"
+
+
+def _stem(args) -> str:
+    if args.name:
+        if os.sep in args.name or (os.altsep and os.altsep in args.name):
+            raise ParameterError(f"--name must be a plain file name prefix, got {args.name!r}")
+        return args.name
+    if args.input.startswith("example:"):
+        return args.input.split(":", 1)[1] or "example"
+    return Path(args.input).stem
+
+
+def run(args) -> int:
+    from ..family import family
+
+    t0 = time.perf_counter()
+    lams = lams_from_args(args)
+    image = getattr(args, "image", None)
+    if image:
+        from ._images import _check
+
+        _check(image)  # a bad picture path fails before any work
+    # members drawn in the --image strip: at most 12, evenly spaced, first and last included
+    panels = sorted(set(np.linspace(0, len(lams) - 1, min(12, len(lams))).round().astype(int).tolist()))
+    kept = {}
+    outdir = Path(args.output)
+    if outdir.exists() and not outdir.is_dir():
+        raise ParameterError(f"OUTDIR {str(outdir)!r} exists and is not a directory")
+    names = member_names(_stem(args), lams, _output_format(args))
+    paths = [outdir / nm for nm in names]
+    if not args.force:
+        exist = [p for p in paths if p.exists()]
+        if exist:
+            raise ParameterError(f"{len(exist)} member file(s) already exist in {str(outdir)!r} "
+                                 f"(first: {exist[0].name}); pass --force to overwrite them")
+    mesh = load_mesh_arg(args.input)
+    kw = flow_kwargs(args, mesh)
+    outdir.mkdir(parents=True, exist_ok=True)
+    # batches bound the memory of the positions held at once (one batch for any usual family)
+    per_member = 2 * 24 * max(1, mesh.n_vertices)
+    batch = max(1, BATCH_BYTES // per_member)
+    order = sorted(range(len(lams)), key=lambda i: abs(lams[i]))
+    batches = [order[i:i + batch] for i in range(0, len(order), batch)]
+    reports = []
+    # one bar over both phases: every member is counted once solved and once written
+    with progress_callback(2 * len(lams), "family (solve+write)", quiet=args.quiet) as cb:
+        done = 0
+        for idx in batches:
+            def solved(d, total, _base=done):
+                if cb is not None:
+                    cb(_base + d, 2 * len(lams))
+
+            shapes, rep = family(mesh, [lams[i] for i in idx], strategy=args.strategy,
+                                 progress=solved, return_report=True, **kw)
+            reports.append(rep)
+            done += len(idx)
+            for i, V in zip(idx, shapes):
+                save_mesh(str(paths[i]), mesh.with_vertices(V))
+                if image and i in panels:
+                    kept[i] = V
+                done += 1
+                if cb is not None:
+                    cb(done, 2 * len(lams))
+    if image:
+        from ._images import family_image
+
+        family_image(image, [mesh.with_vertices(kept[i]) for i in panels], [lams[i] for i in panels],
+                     quiet=args.quiet)
+    if not args.quiet:
+        summary = "; ".join(r.summary() for r in reports)
+        eprint(f"shapeflow family: {len(lams)} members, λ {lams[0]:g} .. {lams[-1]:g}, "
+               f"{mesh.n_vertices} vertices: {summary}; total {time.perf_counter() - t0:.3f} s "
+               f"-> {outdir}{os.sep}{names[0]} .. {names[-1]}")
+    return 0
