@@ -90,7 +90,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from .errors import ParameterError
-from .flow import UPDATES, FlowReport, FlowSolver, _axes, _finite
+from .flow import FlowReport, FlowSolver, _finite, check_run_options
 from .mesh import Mesh
 from .solvers import DEFAULT_RTOL, estimate_cg_iterations
 
@@ -370,19 +370,6 @@ def _check_lams(lams) -> np.ndarray:
     return np.array(vals, dtype=np.float64)
 
 
-def _check_run_options(iterations, update, axes, blender: bool) -> np.ndarray:
-    """The checks FlowSolver.run() makes on its own options (same messages)."""
-    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)):
-        raise ParameterError(f"iterations must be a non-negative integer, got {iterations!r}")
-    if iterations < 0:
-        raise ParameterError(f"iterations must be >= 0, got {iterations}")
-    if update not in UPDATES:
-        raise ParameterError(f"update must be 'fixed' or 'recompute', got {update!r}")
-    if blender and update != "fixed":
-        raise ParameterError("compat='blender' keeps the operator of the first iteration (update='fixed')")
-    return _axes(axes)
-
-
 def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterations: int = 1,
            normalized: bool = True, weights=None, invert_weights: bool = False,
            preserve_volume: bool = False, axes: Sequence[bool] | str = (True, True, True),
@@ -433,7 +420,7 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
     lam_arr = _check_lams(lams)
     fs = FlowSolver(mesh, lam_border=lam_border, normalized=normalized, weights=weights,
                     invert_weights=invert_weights, scheme=scheme, compat=compat, solver=solver, rtol=rtol)
-    ax = _check_run_options(iterations, update, axes, fs.blender)
+    ax = check_run_options(iterations, update, axes, fs.blender)
     k, n = lam_arr.size, mesh.n_vertices
     report = FamilyReport(lams=lam_arr, path="unchanged", reason="", lam_border=fs.lam_border,
                           iterations=int(iterations), mode="blender" if fs.blender else "paper",
@@ -591,18 +578,9 @@ def _plan_multishift(fs: FlowSolver, op, lams: np.ndarray, notes: list):
 
 
 def _boundary_solve(fs: FlowSolver, op, V: np.ndarray):
-    """Boundary vertices solved with λ_b (as FlowSolver._step): positions X and the boundary system."""
+    """Solve the boundary block (independent of λ): positions X and the system."""
     bsys = fs._boundary_system(op, fs.lam_border)
-    X = V.copy()
-    if bsys is not None:
-        r, s, e = bsys.coupling
-        rhs = bsys.c[:, None] * V[bsys.idx]
-        if r.size:
-            lr = bsys.local[r]
-            for j in range(3):
-                rhs[:, j] += np.bincount(lr, e * V[s, j], minlength=bsys.idx.size)
-        X[bsys.idx] = bsys.solver.solve(rhs, V[bsys.idx])
-    return X, bsys
+    return fs._solve_boundary(V, bsys), bsys
 
 
 def _multishift(fs: FlowSolver, op, plan: _Plan, lams: np.ndarray, ax: np.ndarray, preserve_volume: bool,

@@ -94,6 +94,19 @@ def _axes(axes) -> np.ndarray:
     return np.array(a)
 
 
+def check_run_options(iterations, update, axes, blender: bool) -> np.ndarray:
+    """Validate the per-run options of the flow; returns the axes mask."""
+    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)):
+        raise ParameterError(f"iterations must be a non-negative integer, got {iterations!r}")
+    if iterations < 0:
+        raise ParameterError(f"iterations must be >= 0, got {iterations}")
+    if update not in UPDATES:
+        raise ParameterError(f"update must be 'fixed' or 'recompute', got {update!r}")
+    if blender and update != "fixed":
+        raise ParameterError("compat='blender' keeps the operator of the first iteration (update='fixed')")
+    return _axes(axes)
+
+
 def resolve_weights(mesh: Mesh, weights, invert: bool = False) -> np.ndarray:
     """Per-vertex weights in [0, 1] from None (all 1), an attribute name or an array."""
     n = mesh.n_vertices
@@ -327,8 +340,8 @@ class FlowSolver:
         return sysm
 
     # --- one step -------------------------------------------------------------
-    def _step(self, V: np.ndarray, lam: float, lam_b: float, isys: _System | None,
-              bsys: _System | None, axes: np.ndarray, report: FlowReport) -> np.ndarray:
+    def _solve_boundary(self, V: np.ndarray, bsys: _System | None) -> np.ndarray:
+        """Positions after the boundary block's solve (a copy of V elsewhere)."""
         X = V.copy()
         if bsys is not None:
             r, s, e = bsys.coupling
@@ -338,6 +351,11 @@ class FlowSolver:
                 for k in range(3):
                     rhs[:, k] += np.bincount(lr, e * V[s, k], minlength=bsys.idx.size)
             X[bsys.idx] = bsys.solver.solve(rhs, V[bsys.idx])
+        return X
+
+    def _step(self, V: np.ndarray, lam: float, lam_b: float, isys: _System | None,
+              bsys: _System | None, axes: np.ndarray, report: FlowReport) -> np.ndarray:
+        X = self._solve_boundary(V, bsys)
         if isys is not None:
             r, s, e = isys.coupling
             rhs = np.where(isys.free[:, None], isys.c[:, None] * V, X)
@@ -396,15 +414,7 @@ class FlowSolver:
         t0 = time.perf_counter()
         lam = _finite("lam", lam)
         lam_b = self.lam_border
-        if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)):
-            raise ParameterError(f"iterations must be a non-negative integer, got {iterations!r}")
-        if iterations < 0:
-            raise ParameterError(f"iterations must be >= 0, got {iterations}")
-        if update not in UPDATES:
-            raise ParameterError(f"update must be 'fixed' or 'recompute', got {update!r}")
-        if self.blender and update != "fixed":
-            raise ParameterError("compat='blender' keeps the operator of the first iteration (update='fixed')")
-        ax = _axes(axes)
+        ax = check_run_options(iterations, update, axes, self.blender)
         report = FlowReport(lam=lam, lam_border=lam_b, iterations=int(iterations),
                             mode="blender" if self.blender else "paper", scheme=self.scheme, update=update)
         mesh = self.mesh
