@@ -1,0 +1,153 @@
+"""``shapeflow brush IN OUT --stroke stroke.json``: sculpt a mesh along a brush stroke.
+
+The stroke file is JSON::
+
+    {"lambda": -50, "radius": 0.1, "points": [[x, y, z], ...]}
+
+with optional ``"spacing"`` (dab spacing as a fraction of the radius, default
+0.25; ``null`` = one dab per given point), ``"falloff"`` (``null`` or
+``"smooth"``), ``"lambda_border"`` (λ_b for boundary vertices of open meshes,
+default 0), ``"brush"`` (``"enhance"``, the default, for the section 4.3
+brush with a signed λ, or ``"inflate"``) and, for the inflate brush,
+``"strength"`` (displacement per dab as a fraction of the radius).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+
+from ..errors import ParameterError
+from ._common import eprint, load_mesh_arg, resolve_output, save_mesh
+
+STROKE_KEYS = {"lambda", "radius", "points", "spacing", "falloff", "lambda_border", "brush", "strength"}
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "brush",
+        help="sculpt along a stroke with the shape-enhancement brush (or inflate)",
+        description="Apply brush dabs along a stroke (section 4.3 of the paper): each dab runs one "
+        "implicit flow step on the vertices inside a sphere, the rest of the mesh untouched. "
+        'The stroke is a JSON file: {"lambda": L, "radius": R, "points": [[x, y, z], ...]} with '
+        'optional "spacing" (fraction of the radius, default 0.25), "falloff" (null or "smooth"), '
+        '"lambda_border", "brush" ("enhance" or "inflate") and "strength" (inflate).',
+    )
+    p.add_argument("input", metavar="IN", help="mesh file (OBJ/PLY/OFF) or example:NAME")
+    p.add_argument("output", metavar="OUT", help="where to write the result (format from the extension)")
+    p.add_argument("--stroke", required=True, metavar="JSON", help="stroke file (see above)")
+    p.add_argument("--weights", metavar="FILE_OR_ATTRIBUTE",
+                   help="per-vertex weights in [0,1]: a .npy/.txt file or a vertex attribute of the input")
+    p.add_argument("--area-normalized", action="store_true",
+                   help="area-normalised operator (eq. 9) instead of the normalised one (eq. 10)")
+    p.add_argument("--scheme", choices=["tqlbo", "blender"], default="tqlbo", help="cotangent weights")
+    p.add_argument("--force", action="store_true", help="allow OUTPUT to be the input file (overwrite it)")
+    p.add_argument("--quiet", "-q", action="store_true", help="no summary on stderr")
+    p.add_argument("--image", metavar="PNG", help="also draw before and after side by side (render extra)")
+    p.set_defaults(func=run)
+
+
+def _number(d: dict, key: str, where: str, *, required: bool = False, default=None, positive: bool = False):
+    if key not in d or d[key] is None:
+        if required:
+            raise ParameterError(f"{where}: missing \"{key}\"")
+        return default
+    v = d[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ParameterError(f"{where}: \"{key}\" must be a finite number, got {json.dumps(v)}")
+    if positive and v <= 0:
+        raise ParameterError(f"{where}: \"{key}\" must be > 0, got {v}")
+    return float(v)
+
+
+def read_stroke(path: str) -> dict:
+    """Read and check a stroke file; every problem is one ParameterError line."""
+    try:
+        with open(path, "rb") as f:
+            text = f.read().decode("utf-8")
+    except UnicodeDecodeError:
+        raise ParameterError(f"stroke file '{path}' is not UTF-8 text") from None
+    try:
+        d = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ParameterError(f"stroke file '{path}' is not valid JSON: {exc.msg} "
+                             f"(line {exc.lineno}, column {exc.colno})") from None
+    where = f"stroke file '{path}'"
+    if not isinstance(d, dict):
+        raise ParameterError(f"{where}: expected a JSON object like "
+                             '{"lambda": -50, "radius": 0.1, "points": [[0, 0, 0]]}')
+    unknown = sorted(set(d) - STROKE_KEYS)
+    if unknown:
+        raise ParameterError(f"{where}: unknown key(s) {', '.join(map(json.dumps, unknown))}; "
+                             f"expected {', '.join(sorted(STROKE_KEYS))}")
+    kind = d.get("brush", "enhance")
+    if kind not in ("enhance", "inflate"):
+        raise ParameterError(f"{where}: \"brush\" must be \"enhance\" or \"inflate\", got {json.dumps(kind)}")
+    out = {"brush": kind}
+    out["radius"] = _number(d, "radius", where, required=True, positive=True)
+    if kind == "enhance":
+        out["lambda"] = _number(d, "lambda", where, required=True)
+        out["lambda_border"] = _number(d, "lambda_border", where, default=0.0)
+        if "strength" in d:
+            raise ParameterError(f"{where}: \"strength\" is for the inflate brush; the enhance brush uses \"lambda\"")
+    else:
+        out["strength"] = _number(d, "strength", where, default=0.05)
+        for k in ("lambda", "lambda_border"):
+            if d.get(k) is not None:
+                raise ParameterError(f"{where}: \"{k}\" is for the enhance brush; the inflate brush uses \"strength\"")
+    sp_ = d.get("spacing", 0.25)
+    out["spacing"] = None if sp_ is None else _number(d, "spacing", where, positive=True)
+    fo = d.get("falloff")
+    if fo not in (None, "smooth", "none", "constant"):
+        raise ParameterError(f"{where}: \"falloff\" must be null or \"smooth\", got {json.dumps(fo)}")
+    out["falloff"] = fo
+    pts = d.get("points")
+    if pts is None:
+        raise ParameterError(f"{where}: missing \"points\" (a list of [x, y, z])")
+    if not isinstance(pts, list) or not pts:
+        raise ParameterError(f"{where}: \"points\" must be a non-empty list of [x, y, z]")
+    for i, q in enumerate(pts):
+        if (not isinstance(q, list) or len(q) != 3
+                or any(isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) for x in q)):
+            raise ParameterError(f"{where}: point {i} must be [x, y, z] with three finite numbers, got {json.dumps(q)}")
+    out["points"] = [[float(x) for x in q] for q in pts]
+    return out
+
+
+def run(args) -> int:
+    from ..brush import Brush, InflateBrush
+    from .flow import weights_arg
+
+    stroke = read_stroke(args.stroke)
+    out_path = resolve_output(args.input, args.output, args.force)
+    if args.image:
+        from ._images import _check
+
+        _check(args.image)
+    mesh = load_mesh_arg(args.input)
+    weights = weights_arg(args.weights, mesh)
+    t0 = time.perf_counter()
+    if stroke["brush"] == "enhance":
+        brush = Brush(mesh, lam=stroke["lambda"], radius=stroke["radius"], falloff=stroke["falloff"],
+                      lam_border=stroke["lambda_border"], weights=weights, scheme=args.scheme,
+                      normalized=not args.area_normalized, undo_limit=0)
+    else:
+        brush = InflateBrush(mesh, strength=stroke["strength"], radius=stroke["radius"],
+                             falloff=stroke["falloff"], weights=weights, undo_limit=0)
+    t1 = time.perf_counter()
+    centers = brush.dab_centers(stroke["points"], stroke["spacing"])
+    moved = brush.stroke(centers, spacing=None)
+    t2 = time.perf_counter()
+    result = brush.mesh
+    save_mesh(out_path, result)
+    if args.image:
+        from ._images import before_after
+
+        before_after(args.image, mesh, result, label_after=f"{stroke['brush']} stroke", quiet=args.quiet)
+    if not args.quiet:
+        n = len(centers)
+        eprint(f"shapeflow brush: {stroke['brush']}, {n} dab{'s' if n != 1 else ''} of radius {stroke['radius']:g}, "
+               f"{moved.size} of {mesh.n_vertices} vertices moved; set-up {t1 - t0:.3f} s, "
+               f"dabs {t2 - t1:.3f} s ({1e3 * (t2 - t1) / max(n, 1):.2f} ms/dab) -> {out_path}")
+    return 0
