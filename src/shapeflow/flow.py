@@ -215,13 +215,22 @@ def _build_operator(mesh: Mesh, V: np.ndarray, scheme: str, blender: bool, norma
 # --------------------------------------------------------------------------
 
 class _System:
-    """One linear system on a subset of free vertices, with its couplings."""
+    """One linear system on a subset of free vertices, with its couplings.
 
-    def __init__(self, A, free, solver, coupling):
+    ``c`` is the diagonal scale C of the free rows; ``coupling`` the (rows,
+    cols, weights) of terms moved to the right-hand side.  A boundary system
+    is compact: ``idx`` lists its vertices and ``local`` maps a vertex to its
+    row (-1 elsewhere); an interior system spans all n rows (``idx`` None).
+    """
+
+    def __init__(self, A, free, solver, coupling, c, idx=None, local=None):
         self.A = A
-        self.free = free            # bool mask (n,)
+        self.free = free
         self.solver = solver
-        self.coupling = coupling    # (rows, cols, weights) of terms moved to the right-hand side
+        self.coupling = coupling
+        self.c = c
+        self.idx = idx
+        self.local = local
 
 
 class FlowSolver:
@@ -300,9 +309,7 @@ class FlowSolver:
                     np.concatenate([op.pw[a], op.pw[b]]))
         kappa = 1.0 + 2.0 * float(np.max(np.abs(op.deg[free] / np.where(c[free] != 0, c[free], 1.0))))
         method = "lu" if (self.blender and indefinite.any()) else self._method(int(free.sum()), kappa, n_solves)
-        sysm = _System(A, free, SPDSolver(A, method, rtol=self.rtol), coupling)
-        sysm.c = c
-        return sysm
+        return _System(A, free, SPDSolver(A, method, rtol=self.rtol), coupling, c)
 
     def _boundary_system(self, op: _Operator, lam_b: float) -> _System | None:
         if lam_b == 0.0 or op.ub.size == 0:
@@ -333,11 +340,7 @@ class FlowSolver:
             keep = ~op.locked[s]
             r, s, e = r[keep], s[keep], e[keep]
         method = "lu" if idx.size < 20000 else "cg"
-        sysm = _System(A, free, SPDSolver(A, method, rtol=self.rtol), (r, s, e))
-        sysm.c = c
-        sysm.idx = idx
-        sysm.local = local
-        return sysm
+        return _System(A, free, SPDSolver(A, method, rtol=self.rtol), (r, s, e), c, idx, local)
 
     # --- one step -------------------------------------------------------------
     def _solve_boundary(self, V: np.ndarray, bsys: _System | None) -> np.ndarray:
@@ -354,7 +357,7 @@ class FlowSolver:
         return X
 
     def _step(self, V: np.ndarray, lam: float, lam_b: float, isys: _System | None,
-              bsys: _System | None, axes: np.ndarray, report: FlowReport) -> np.ndarray:
+              bsys: _System | None, boundary: np.ndarray, axes: np.ndarray, report: FlowReport) -> np.ndarray:
         X = self._solve_boundary(V, bsys)
         if isys is not None:
             r, s, e = isys.coupling
@@ -370,7 +373,7 @@ class FlowSolver:
             bad = ~np.isfinite(X).all(axis=1)
             X[bad] = V[bad]
             report.notes.append(f"{int(bad.sum())} vertices with a non-finite solution kept in place")
-        sign = np.where(self._boundary_mask_for_sign, 1.0 if lam_b >= 0 else -1.0, 1.0 if lam >= 0 else -1.0)
+        sign = np.where(boundary, 1.0 if lam_b >= 0 else -1.0, 1.0 if lam >= 0 else -1.0)
         out = V.copy()
         d = (X - V) * sign[:, None]
         out[:, axes] += d[:, axes]
@@ -445,14 +448,13 @@ class FlowSolver:
                     op = self.operator(V)
                 isys = self._interior_system(op, lam, n_solves, report.notes)
                 bsys = self._boundary_system(op, lam_b)
-                self._boundary_mask_for_sign = op.boundary
                 if isys is not None:
                     report.solver = isys.solver.method
                 report.free_vertices = int((isys.free.sum() if isys else 0) + (bsys.free.sum() if bsys else 0))
                 if isys is None and bsys is None:
                     report.notes.append("no free vertex: input returned unchanged")
                     break
-            V_new = self._step(V, lam, lam_b, isys, bsys, ax, report)
+            V_new = self._step(V, lam, lam_b, isys, bsys, op.boundary, ax, report)
             if preserve_volume:
                 V_new = self._preserve_volume(V, V_new, ax, center0, report)
             V = V_new
