@@ -57,7 +57,7 @@ def amo_mesh(path: Path) -> sf.Mesh | None:
 
 
 def bench(name: str, mesh: sf.Mesh, repeat: int, size, out_dir: str) -> list[float]:
-    from shapeflow.render import render
+    from shapeflow.rendering import render
 
     medians = []
     for label, kw in (("plain", dict(color="none")), ("edges", dict(color="none", edges=True)),
@@ -82,7 +82,7 @@ def main(argv=None) -> int:
     ap.add_argument("--keep", metavar="DIR", help="keep the PNGs in DIR")
     a = ap.parse_args(argv)
     size = tuple(int(s) for s in a.size.split("x"))
-    from shapeflow.render import available
+    from shapeflow.rendering import available
 
     if not available():
         print("rendering is not available (pip install 'shapeflow[render]')", file=sys.stderr)

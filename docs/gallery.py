@@ -12,7 +12,7 @@ the captions quote.
 Figures (numbers from "Shape Enhanced With an Adapted Laplacian Operator For
 Hybrid Quad/Triangle Meshes"):
 
-* fig1  a family of shapes, blue → red — needs ``shapeflow.family``; skipped
+* fig1  a family of shapes from one multi-shift solve, blue → red
         with a message while that module is missing;
 * fig5  coarse cage → Catmull–Clark → enhancement with weights painted on the cage;
 * fig6  cage → Catmull–Clark → smoothing λ=60, λ_b=12 → enhancement λ=−200, λ_b=12
@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 import shapeflow as sf
-from shapeflow.render import render_meshes
+from shapeflow.rendering import render_meshes
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
@@ -89,18 +89,10 @@ def height_weights(v: np.ndarray, lo: float, hi: float) -> np.ndarray:
 # figures
 
 def figure1_family(meshes: Path, out: Path) -> str:
-    """FIGURE 1 (family strip) — HOOK, to be completed by whoever lands ``shapeflow.family``.
-
-    Meant to show: a family of 48 shapes, λ = 0 … −240 in steps of −5, one
-    solve, coloured blue (λ=0) → red (λ=−240), with
-    ``shapeflow.cli._images.family_image`` (an evenly spaced subset of the
-    members in a strip).  Until ``shapeflow.family`` exists this raises
-    :class:`Unavailable`, and nothing is faked with repeated ``flow`` calls.
-    """
-    try:
-        from shapeflow.family import family_meshes
-    except ImportError as exc:
-        raise Unavailable(f"figure 1 needs shapeflow.family, which is not there yet ({exc})") from None
+    """FIGURE 1: a family of shapes, λ = 0 … −240 in steps of −5, from one
+    multi-shift solve, coloured blue (λ=0) → red (λ=−240); an evenly spaced
+    subset of the members is drawn in a strip."""
+    from shapeflow.families import family_meshes
     from shapeflow.cli._images import family_image
 
     spot = load(meshes, "spot_quad")
@@ -271,7 +263,7 @@ def main(argv=None) -> int:
     unknown = [f for f in a.figures if f not in FIGURES]
     if unknown:
         ap.error(f"unknown figure(s) {', '.join(unknown)}; choose from {', '.join(FIGURES)}")
-    from shapeflow.render import available
+    from shapeflow.rendering import available
 
     if not available():
         print("rendering is not available: pip install 'shapeflow[render]'", file=sys.stderr)

@@ -13,7 +13,7 @@ from shapeflow.cli import main
 from conftest import MESHES, requires_shared
 from meshgen import cube_sphere, grid
 
-fam = importlib.import_module("shapeflow.family")
+fam = importlib.import_module("shapeflow.families")
 
 #: mixed signs, zeros, a repeated λ and a ±λ pair (one shift for both)
 LAMS = [0.0, -5.0, 5.0, -50.0, -120.0, 30.0, 0.0, -235.0, -5.0]
@@ -251,7 +251,10 @@ def test_family_meshes_and_progress():
 
 
 def test_family_is_callable_whatever_was_imported_first():
-    import shapeflow.family  # noqa: F401  (binds the package attribute to the module)
+    import shapeflow.families  # noqa: F401  (binds the package attribute ``families``, not ``family``)
+    import shapeflow.rendering  # noqa: F401
+
+    assert callable(sf.render) and callable(sf.render_meshes)
 
     c = cube_sphere(2)
     out = sf.family(c, [-3.0])

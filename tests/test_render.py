@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import shapeflow as sf
-from shapeflow import render as R
+from shapeflow import rendering as R
 from shapeflow.cli import main
 from shapeflow.errors import OptionalDependencyError, ParameterError
 

@@ -28,8 +28,8 @@ _LAZY = {
     "load": "io", "save": "io", "load_weights": "io", "save_weights": "io",
     "load_example": "examples", "example_path": "examples",
     "subdivide": "subdivision", "subdivision_matrix": "subdivision",
-    "family": "family", "family_meshes": "family",
-    "render": "render", "render_meshes": "render",
+    "family": "families", "family_meshes": "families",
+    "render": "rendering", "render_meshes": "rendering",
     "Brush": "brush", "InflateBrush": "brush",
 }
 

@@ -30,7 +30,7 @@ def before_after(path: str, before, after, *, label_before: str = "input", label
     """Write ``before`` and ``after`` side by side with one camera (and one colour range).
 
     ``edges`` and ``shading`` may be one value or a pair (before, after)."""
-    from ..render import render_meshes
+    from ..rendering import render_meshes
 
     _check(path)
     render_meshes([before, after], path, labels=[label_before, label_after], color=color, edges=edges,
@@ -66,7 +66,7 @@ def family_image(path: str, meshes, lams, *, view=VIEW, up: str = "y", max_panel
     """
     import numpy as np
 
-    from ..render import family_colors, render_meshes
+    from ..rendering import family_colors, render_meshes
 
     _check(path)
     meshes, lams = list(meshes), list(lams)

@@ -47,7 +47,7 @@ def run(args) -> int:
 
         check_png(args.image, "--image")
         size = parse_size(args.size)
-        from ..render import require
+        from ..rendering import require
 
         require()  # fail before writing anything
     out = resolve_output(args.input, args.output, args.force)
@@ -61,7 +61,7 @@ def run(args) -> int:
     else:
         np.savetxt(out, h, fmt="%.17g")
     if args.image:
-        from ..render import render
+        from ..rendering import render
 
         render(result, args.image, color="curvature", view=args.view, up=args.up, size=size,
                label=f"mean curvature ({args.area} area)")

@@ -145,7 +145,7 @@ def _stem(args) -> str:
 
 
 def run(args) -> int:
-    from ..family import family
+    from ..families import family
 
     t0 = time.perf_counter()
     lams = lams_from_args(args)

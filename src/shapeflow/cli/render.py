@@ -101,7 +101,7 @@ def check_png(path: str, option: str = "output") -> str:
 def run(args) -> int:
     import time
 
-    from ..render import render, render_meshes
+    from ..rendering import render, render_meshes
 
     if len(args.paths) < 2:
         raise ParameterError("give at least one mesh and the PNG to write: shapeflow render MESH OUT.png")

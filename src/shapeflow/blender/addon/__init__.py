@@ -37,7 +37,7 @@ def _warm_import():
     try:
         import scipy.sparse.linalg  # noqa: F401
         import shapeflow.brush  # noqa: F401
-        import shapeflow.family  # noqa: F401
+        import shapeflow.families  # noqa: F401
         import shapeflow.flow  # noqa: F401
         import shapeflow.subdivision  # noqa: F401
     except Exception:  # noqa: BLE001 - the operators report import problems themselves

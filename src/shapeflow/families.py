@@ -81,9 +81,7 @@ why.
 
 from __future__ import annotations
 
-import sys
 import time
-import types
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
@@ -707,17 +705,3 @@ def _separate(fs: FlowSolver, lams: np.ndarray, members, out: np.ndarray, report
 
 
 # --------------------------------------------------------------------------
-# ``shapeflow.family`` is this module *and* the function
-# --------------------------------------------------------------------------
-
-class _CallableModule(types.ModuleType):
-    """Importing ``shapeflow.family`` (the module) makes Python set the package
-    attribute ``shapeflow.family`` to the module, shadowing the lazily exported
-    function of the same name.  Calling the module calls :func:`family`, so
-    ``shapeflow.family(mesh, lams)`` works whatever was imported first."""
-
-    def __call__(self, *args, **kwargs):
-        return family(*args, **kwargs)
-
-
-sys.modules[__name__].__class__ = _CallableModule
