@@ -854,16 +854,12 @@ class Brush(_BrushBase):
         A triangle face is one triangle with 3× its corner-triangle weight (its
         three corner triangles are the same triangle); a face with 4+ corners
         has its corner triangles (prev, curr, next), and for "tqlbo" n-gons
-        the interior fan triangles of
-        :func:`shapeflow.operators._fan_interior_triangles`.  Returns T,
+        the interior fan triangles of the operator structure.  Returns T,
         vertices (3, T), pair opposite each corner (3, T), cotangent weight,
         area weight and face of each triangle.  Pair ids index the sorted
         unique pair keys ``ukeys``; ``uinv`` maps the operator's pair ids to them.
         """
-        from .operators import _fan_interior_triangles
-
         t = mesh.topology
-        n = t.n_vertices
         sizes, offs = t.face_sizes, t.face_offsets
         fi, nxt, prv, ce = st.fi, st.nxt, st.prv, st.corner_edge
         c = fi.size
@@ -877,29 +873,11 @@ class Brush(_BrushBase):
         taw = [st.corner_aw[mc] * mult]
         tf = [t.corner_face[mc]]
         if st.extra_tris.size:
-            for s_ in np.unique(sizes[sizes >= 5]):
-                s_ = int(s_)
-                lt, lw = _fan_interior_triangles(s_)
-                if lt.size == 0:
-                    continue
-                faces = np.flatnonzero(sizes == s_)
-                corners = offs[faces][:, None, None] + lt[None]          # (m, t, 3)
-                verts = fi[corners]
-                pid = np.empty(corners.shape, dtype=np.int64)
-                for k in range(3):
-                    la, lb = lt[:, (k + 1) % 3], lt[:, (k + 2) % 3]
-                    ca, cb = corners[:, :, (k + 1) % 3], corners[:, :, (k + 2) % 3]
-                    x, y = verts[:, :, (k + 1) % 3], verts[:, :, (k + 2) % 3]
-                    key = np.minimum(x, y) * np.int64(n) + np.maximum(x, y)
-                    j = np.minimum(np.searchsorted(ukeys, key), ukeys.size - 1)
-                    fwd = ((lb - la) % s_ == 1)[None, :]
-                    bwd = ((la - lb) % s_ == 1)[None, :]
-                    pid[:, :, k] = np.where(fwd, uinv[ce[ca]], np.where(bwd, uinv[ce[cb]], j))
-                tv.append(verts.reshape(-1, 3).T)
-                tp.append(pid.reshape(-1, 3).T)
-                tw.append(np.tile(lw, faces.size))
-                taw.append(np.tile(lw, faces.size))
-                tf.append(np.repeat(faces, lt.shape[0]))
+            tv.append(st.extra_tris.T)
+            tp.append(uinv[st.extra_pair].T)
+            tw.append(st.extra_w)
+            taw.append(st.extra_w)
+            tf.append(st.extra_face)
         face = np.concatenate(tf)
         order = np.argsort(face, kind="stable")
         tv = np.ascontiguousarray(np.concatenate(tv, axis=1)[:, order].astype(np.int64))

@@ -127,7 +127,8 @@ class _Structure:
 
     Contributions come from every polygon corner triangle (prev, curr, next)
     with weight ``corner_w`` and, for ``"tqlbo"`` n-gons, from ``extra``
-    fan triangles.  Vertex pairs are the unique mesh edges followed by the
+    fan triangles (``extra_tris``, ``extra_w``, their ``extra_face`` and the
+    pair opposite each corner, ``extra_pair``).  Vertex pairs are the unique mesh edges followed by the
     unique chords (quad diagonals, n-gon chords); every contribution has a
     precomputed pair index, and the symmetric CSR pattern (with diagonal)
     stores where each pair and each diagonal entry sits, so a matrix with new
@@ -154,7 +155,7 @@ class _Structure:
         primary = ch[~((cs[ch] == 4) & (local[ch] >= 2))]
         va, vb = fi[prv[primary]], fi[nxt[primary]]
         # --- extra fan triangles of tqlbo n-gons
-        xt, xw, xslot_keys, xslot_edge = [], [], [], []
+        xt, xw, xf, xslot_keys, xslot_edge = [], [], [], [], []
         if scheme == "tqlbo":
             for s_ in np.unique(sizes[sizes >= 5]):
                 s_ = int(s_)
@@ -165,6 +166,7 @@ class _Structure:
                 corners = offs[faces][:, None, None] + lt[None]          # (m_s, t, 3)
                 xt.append(fi[corners].reshape(-1, 3))
                 xw.append(np.tile(lw, faces.size))
+                xf.append(np.repeat(faces, lt.shape[0]))
                 # pair opposite local corner k: an edge (adjacent corners) or a chord
                 sl_edge = np.full((faces.size, lt.shape[0], 3), -1, dtype=np.int64)
                 sl_key = np.full((faces.size, lt.shape[0], 3), -1, dtype=np.int64)
@@ -203,12 +205,14 @@ class _Structure:
         if xt:
             self.extra_tris = np.concatenate(xt)
             self.extra_w = np.concatenate(xw)
+            self.extra_face = np.concatenate(xf)
             sp_ = np.concatenate(xslot_edge)
             sp_[xmask] = n_edges + n_primary + np.arange(int(xmask.sum()))
             self.extra_pair = sp_
         else:
             self.extra_tris = np.zeros((0, 3), np.int64)
             self.extra_w = np.zeros(0)
+            self.extra_face = np.zeros(0, np.int64)
             self.extra_pair = np.zeros((0, 3), np.int64)
         self.pairs = pairs
         self.n = n
