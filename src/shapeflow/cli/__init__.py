@@ -50,6 +50,13 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return int(args.func(args) or 0)
+    except BrokenPipeError:
+        # the reader of our output went away (e.g. `shapeflow info x | head`): not an error to report
+        import os
+
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 141
     except (ShapeflowError, OptionalDependencyError) as exc:
         print(f"shapeflow {args.command}: error: {exc}", file=sys.stderr)
         return 2
