@@ -189,12 +189,15 @@ def _build_operator(mesh: Mesh, V: np.ndarray, scheme: str, blender: bool, norma
     t = mesh.topology
     st, pw, deg, ring, locked, n_bad = _assemble(mesh, scheme, "blender" if blender else "relative", V)
     edges = t.edges
-    elen = np.linalg.norm(V[edges[:, 0]] - V[edges[:, 1]], axis=1) if edges.size else np.zeros(0)
+
+    def lengths(e):  # only the umbrella edges need a length (few: they lie on the boundary)
+        return np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)
+
     if blender:
         boundary = t.vertex_edge_count != t.vertex_corner_count
         sel = boundary[edges[:, 0]] & boundary[edges[:, 1]] if edges.size else np.zeros(0, bool)
         ub = edges[sel]
-        el = elen[sel]
+        el = lengths(ub)
         # Blender keeps the raw length as the weight of a too-short edge (its ends are locked)
         ue = np.where(el < 1e-5, el, 1.0 / np.where(el < 1e-5, 1.0, el))
         mass = deg if normalized else 4.0 * ring * deg
@@ -202,7 +205,7 @@ def _build_operator(mesh: Mesh, V: np.ndarray, scheme: str, blender: bool, norma
         boundary = t.boundary_vertex_mask.copy()
         sel = t.boundary_edge_mask & ~locked[edges[:, 0]] & ~locked[edges[:, 1]]
         ub = edges[sel]
-        el = elen[sel]
+        el = lengths(ub)
         ue = 1.0 / el  # short edges were locked above, so el > 0 here
         mass = deg if normalized else 2.0 * ring
     n = mesh.n_vertices
