@@ -390,3 +390,16 @@ def test_fuzz_readers_with_mutated_real_files(tmp_path):
     assert slowest < 2.0, f"one input took {slowest:.2f} s"
     assert elapsed < 120.0, f"{n_cases} inputs took {elapsed:.0f} s"
     assert 0 < loaded < n_cases  # the mutations produce both valid and invalid files
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e6])
+def test_subnormal_lambda_moves_nothing_without_overflow(scale):
+    # found by hypothesis: λ_b = 2.2e-311 made the row scale C overflow
+    import warnings
+
+    m = hybrid_mesh(4, 4, 1, 0.3, 0.0, 0.2, False)
+    m = m.with_vertices(m.vertices * scale)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out = sf.flow(m, 1e-310, lam_border=-2.2e-311, normalized=False)
+    np.testing.assert_array_equal(out.vertices, m.vertices)

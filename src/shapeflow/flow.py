@@ -236,6 +236,22 @@ class _System:
         self.local = local
 
 
+def _row_scale(mass: np.ndarray, lam_abs: float, w: np.ndarray, rows: np.ndarray,
+               coord_scale: float) -> np.ndarray:
+    """C = m / (|λ| w) on ``rows`` (0 elsewhere).
+
+    A step so small that C·V would overflow (|λ| near the float limit) moves
+    nothing representable: those rows come back as inf and the caller keeps
+    them fixed.
+    """
+    c = np.zeros_like(mass)
+    with np.errstate(over="ignore", divide="ignore"):
+        c[rows] = mass[rows] / (lam_abs * w[rows])
+    limit = np.finfo(np.float64).max / (64.0 * max(coord_scale, 1.0))
+    c[c > limit] = np.inf
+    return c
+
+
 class FlowSolver:
     """Stateful flow on one mesh: reuses operators and factorisations.
 
@@ -270,7 +286,7 @@ class FlowSolver:
         self.solver_method = solver
         self.rtol = float(rtol)
         self._op0: _Operator | None = None
-        self._systems: dict = {}
+        self._coord_scale = float(np.abs(mesh.vertices).max()) if mesh.n_vertices else 1.0
 
     # --- operator and systems ----------------------------------------------
     def operator(self, V: np.ndarray | None = None) -> _Operator:
@@ -297,10 +313,11 @@ class FlowSolver:
                 free |= indefinite  # Blender solves these rows too; use LU below
             else:
                 notes.append(f"{int(indefinite.sum())} vertices with negative cotangent degree kept fixed")
+        c = _row_scale(op.mass, abs(lam), w, free, self._coord_scale)
+        free &= np.isfinite(c)
         if not free.any():
             return None
-        c = np.zeros_like(op.mass)
-        c[free] = op.mass[free] / (abs(lam) * w[free])
+        c[~free] = 0.0
         p0, p1 = op.st.pairs[:, 0], op.st.pairs[:, 1]
         both = free[p0] & free[p1]
         diag = np.where(free, c + op.deg, 1.0)
@@ -319,13 +336,15 @@ class FlowSolver:
             return None
         w = self.w
         free = op.boundary & ~op.locked & (w > 0) & (op.E > 0)
+        k_b = 2.0 if self.blender else 1.0
+        c_all = _row_scale(op.E, k_b * abs(lam_b), w, free, self._coord_scale)
+        free &= np.isfinite(c_all)
         if not free.any():
             return None
         idx = np.flatnonzero(free)
         local = np.full(self.mesh.n_vertices, -1)
         local[idx] = np.arange(idx.size)
-        k_b = 2.0 if self.blender else 1.0
-        c = op.E[idx] / (k_b * abs(lam_b) * w[idx])
+        c = c_all[idx]
         q0, q1 = op.ub[:, 0], op.ub[:, 1]
         both = free[q0] & free[q1]
         rows = np.concatenate([local[q0[both]], local[q1[both]], np.arange(idx.size)])
