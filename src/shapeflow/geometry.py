@@ -58,23 +58,38 @@ def triangle_cotangents(vertices: np.ndarray, tris: np.ndarray):
     return cot, dbl, sq
 
 
-def face_vector_areas(mesh) -> np.ndarray:
+def face_vector_areas(mesh, vertices: np.ndarray | None = None) -> np.ndarray:
     """(m, 3) vector area of every polygon (½ Σ (v_k − v_0) × (v_{k+1} − v_0)).
 
     Its length is the area of a planar polygon; it is translation-exact
-    because it is computed relative to each face's first corner.
+    because it is computed relative to each face's first corner.  Computed
+    component by component on contiguous arrays.
     """
     t = mesh.topology
-    v = mesh.vertices
-    fi = t.face_indices
-    first = v[fi[t.face_offsets[:-1]]]
-    base = np.repeat(first, t.face_sizes, axis=0)
-    a = v[fi] - base
-    b = v[fi[t.corner_next]] - base
+    v = mesh.vertices if vertices is None else vertices
     if t.n_faces == 0:
         return np.zeros((0, 3))
-    # every face has >= 3 corners, so no segment is empty
-    return 0.5 * np.add.reduceat(np.cross(a, b), t.face_offsets[:-1], axis=0)
+    fi = t.face_indices
+    sizes = t.face_sizes
+    k0 = int(sizes[0])
+    if k0 in (3, 4) and (sizes == k0).all():
+        # uniform meshes: a triangle's edges, or a quad's diagonals (exact for any quad)
+        f = fi.reshape(-1, k0)
+        i, j, p, q = (0, 1, 0, 2) if k0 == 3 else (0, 2, 1, 3)
+        a = [v[:, k][f[:, j]] - v[:, k][f[:, i]] for k in range(3)]
+        b = [v[:, k][f[:, q]] - v[:, k][f[:, p]] for k in range(3)]
+        return 0.5 * np.stack([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]], axis=1)
+    first = np.repeat(fi[t.face_offsets[:-1]], sizes)
+    nxt = fi[t.corner_next]
+    a = [v[:, k][fi] - v[:, k][first] for k in range(3)]
+    b = [v[:, k][nxt] - v[:, k][first] for k in range(3)]
+    starts = t.face_offsets[:-1]
+    out = np.empty((t.n_faces, 3))
+    # every face has >= 3 corners, so no reduceat segment is empty
+    out[:, 0] = np.add.reduceat(a[1] * b[2] - a[2] * b[1], starts)
+    out[:, 1] = np.add.reduceat(a[2] * b[0] - a[0] * b[2], starts)
+    out[:, 2] = np.add.reduceat(a[0] * b[1] - a[1] * b[0], starts)
+    return 0.5 * out
 
 
 def signed_volume(mesh, vertices: np.ndarray | None = None, center: np.ndarray | None = None) -> float:
@@ -105,10 +120,12 @@ def vertex_normals(mesh, vertices: np.ndarray | None = None) -> np.ndarray:
     """Unit area-weighted vertex normals ((0,0,0) where undefined)."""
     t = mesh.topology
     v = mesh.vertices if vertices is None else vertices
-    fa = face_vector_areas(mesh if vertices is None else mesh.with_vertices(v))
-    per_corner = np.repeat(fa, t.face_sizes, axis=0)
-    nrm = np.stack([np.bincount(t.face_indices, per_corner[:, k], minlength=v.shape[0]) for k in range(3)], axis=1)
-    ln = np.linalg.norm(nrm, axis=1)
+    fa = face_vector_areas(mesh, v)
+    n = v.shape[0]
+    nrm = np.empty((n, 3))
+    for k in range(3):
+        nrm[:, k] = np.bincount(t.face_indices, np.repeat(fa[:, k], t.face_sizes), minlength=n)
+    ln = np.sqrt(np.einsum("ij,ij->i", nrm, nrm))
     ok = ln > 0
     nrm[ok] /= ln[ok, None]
     return nrm
