@@ -496,6 +496,11 @@ def vertex_areas(mesh, kind: str = "ring", scheme: str = "tqlbo") -> np.ndarray:
         triangles with their weights (exactly Meyer's on triangle meshes).
     """
     st, _, _, ring, _, _ = _assemble(mesh, scheme, "relative")
+    return _areas(mesh, st, ring, kind)
+
+
+def _areas(mesh, st: _Structure, ring: np.ndarray, kind: str) -> np.ndarray:
+    """Per-vertex areas of :func:`vertex_areas` from an assembled operator."""
     if kind == "ring":
         return ring
     if kind == "barycentric":
@@ -531,7 +536,7 @@ def mean_curvature_normal(mesh, *, area: str = "ring", scheme: str = "tqlbo") ->
     curvature (no closed ring).
     """
     st, pw, deg, ring, _, _ = _assemble(mesh, scheme, "relative")
-    A = ring if area == "ring" else vertex_areas(mesh, area, scheme)
+    A = _areas(mesh, st, ring, area)
     KV = st.matrix(deg, -pw) @ mesh.vertices
     with np.errstate(divide="ignore", invalid="ignore"):
         out = KV / (4.0 * A[:, None])
