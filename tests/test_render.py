@@ -331,3 +331,28 @@ def test_cli_flow_image_must_be_png(tmp_path, capsys):
     out = tmp_path / "o.obj"
     assert main(["smooth", "example:spot_cage", str(out), "-s", "1", "--image", str(tmp_path / "o.jpg"), "-q"]) == 2
     assert ".png" in capsys.readouterr().err
+
+
+@needs_render
+def test_image_up_axis_option(tmp_path, capsys):
+    """--image-up z stands a z-up model upright: the picture is taller than wide."""
+    from shapeflow.cli import main
+
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 3], [0, 0, 3], [0, 0.2, 0], [1, 0.2, 0], [1, 0.2, 3], [0, 0.2, 3]], float)
+    faces = [[0, 1, 2, 3], [5, 4, 7, 6], [4, 0, 3, 7], [1, 5, 6, 2], [3, 2, 6, 7], [4, 5, 1, 0]]
+    src = tmp_path / "tall_z.obj"
+    sf.save(src, sf.Mesh(V, faces))
+    heights = {}
+    for up in ("y", "z"):
+        png = tmp_path / f"{up}.png"
+        assert main(["subdivide", str(src), str(tmp_path / f"o_{up}.obj"), "--levels", "1",
+                     "--image", str(png), "--image-up", up]) == 0
+        from PIL import Image
+
+        a = np.asarray(Image.open(png).convert("L"))
+        right = a[a.shape[0] // 8:, a.shape[1] // 2:] < 200   # the subdivided panel, below its title
+        rows, cols = np.flatnonzero(right.any(axis=1)), np.flatnonzero(right.any(axis=0))
+        heights[up] = (rows.ptp(), cols.ptp())
+    capsys.readouterr()
+    assert heights["z"][0] > heights["z"][1]           # upright
+    assert heights["y"][0] < heights["y"][1]           # lying down

@@ -39,13 +39,20 @@ def before_after(path: str, before, after, *, label_before: str = "input", label
         eprint(f"image -> {path}")
 
 
+def add_image_options(parser, help: str = "also draw input and result side by side (needs shapeflow[render])") -> None:
+    """``--image PNG`` and ``--image-up y|z`` (the model's up axis in the picture)."""
+    parser.add_argument("--image", metavar="PNG", help=help)
+    parser.add_argument("--image-up", choices=["y", "z"], default="y",
+                        help="up axis of the model in the picture (default y; z for Blender/CAD exports)")
+
+
 def flow_image(args, before, after, lam: float) -> None:
     """``--image`` of flow/enhance/smooth: input and result coloured by mean curvature."""
     what = "smoothed" if lam > 0 else "enhanced"
     n = getattr(args, "iterations", 1)
     label = f"{what}, λ={lam:g}" + (f", {n} iterations" if n != 1 else "")
     before_after(args.image, before, after, label_before="input", label_after=label,
-                 quiet=getattr(args, "quiet", False))
+                 up=getattr(args, "image_up", "y"), quiet=getattr(args, "quiet", False))
 
 
 def subdivide_image(args, before, after) -> None:
@@ -54,7 +61,8 @@ def subdivide_image(args, before, after) -> None:
     scheme = getattr(args, "scheme", "catmull-clark")
     before_after(args.image, before, after, label_before=f"input ({before.n_faces} faces)",
                  label_after=f"{scheme}, {levels} level{'s' if levels != 1 else ''} ({after.n_faces} faces)",
-                 color="none", edges=True, shading=["flat", "smooth"], quiet=getattr(args, "quiet", False))
+                 color="none", edges=True, shading=["flat", "smooth"], up=getattr(args, "image_up", "y"),
+                 quiet=getattr(args, "quiet", False))
 
 
 def family_image(path: str, meshes, lams, *, view=VIEW, up: str = "y", max_panels: int = 12,

@@ -20,6 +20,7 @@ import time
 
 from ..errors import ParameterError
 from ._common import eprint, load_mesh_arg, resolve_output, save_mesh
+from ._images import add_image_options
 
 STROKE_KEYS = {"lambda", "radius", "points", "spacing", "falloff", "lambda_border", "brush", "strength"}
 
@@ -44,7 +45,7 @@ def register(sub) -> None:
     p.add_argument("--scheme", choices=["tqlbo", "blender"], default="tqlbo", help="cotangent weights")
     p.add_argument("--force", action="store_true", help="allow OUTPUT to be the input file (overwrite it)")
     p.add_argument("--quiet", "-q", action="store_true", help="no summary on stderr")
-    p.add_argument("--image", metavar="PNG", help="also draw before and after side by side (render extra)")
+    add_image_options(p)
     p.set_defaults(func=run)
 
 
@@ -144,7 +145,8 @@ def run(args) -> int:
     if args.image:
         from ._images import before_after
 
-        before_after(args.image, mesh, result, label_after=f"{stroke['brush']} stroke", quiet=args.quiet)
+        before_after(args.image, mesh, result, label_after=f"{stroke['brush']} stroke", up=args.image_up,
+                     quiet=args.quiet)
     if not args.quiet:
         n = len(centers)
         eprint(f"shapeflow brush: {stroke['brush']}, {n} dab{'s' if n != 1 else ''} of radius {stroke['radius']:g}, "

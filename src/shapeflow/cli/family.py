@@ -199,7 +199,7 @@ def run(args) -> int:
         from ._images import family_image
 
         family_image(image, [mesh.with_vertices(kept[i]) for i in panels], [lams[i] for i in panels],
-                     quiet=args.quiet)
+                     up=args.image_up, quiet=args.quiet)
     if not args.quiet:
         summary = "; ".join(r.summary() for r in reports)
         eprint(f"shapeflow family: {len(lams)} members, λ {lams[0]:g} .. {lams[-1]:g}, "

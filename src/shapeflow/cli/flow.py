@@ -7,6 +7,7 @@ import time
 
 from ..errors import ParameterError
 from ._common import eprint, load_mesh_arg, progress_callback, resolve_output, save_mesh
+from ._images import add_image_options
 
 
 def _add_common(p) -> None:
@@ -32,7 +33,7 @@ def _add_common(p) -> None:
     p.add_argument("--solver", choices=["auto", "cg", "cholesky", "lu"], default="auto", help="linear solver")
     p.add_argument("--force", action="store_true", help="allow OUTPUT to be the input file (overwrite it)")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress or summary on stderr")
-    p.add_argument("--image", metavar="PNG", help="also draw input and result side by side (needs shapeflow[render])")
+    add_image_options(p)
 
 
 def register(sub) -> None:

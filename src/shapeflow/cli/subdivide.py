@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 
 from ._common import eprint, load_mesh_arg
+from ._images import add_image_options
 
 
 def register(sub) -> None:
@@ -36,7 +37,7 @@ def register(sub) -> None:
                    "line); replaces weights stored in IN")
     p.add_argument("--weights-out", metavar="FILE",
                    help="also write the subdivided weights to FILE (.npy or text)")
-    p.add_argument("--image", metavar="PNG", help="also draw input and result side by side (needs shapeflow[render])")
+    add_image_options(p)
     p.set_defaults(func=run)
 
 
