@@ -57,6 +57,14 @@ def _errors():
 class FlowOptions:
     """The flow() options shared by every operator (λ itself is per operator)."""
 
+    def execute(self, context):
+        """Run ``self._run``; a library error becomes a report, not a traceback."""
+        try:
+            return self._run(context)
+        except _errors() as exc:
+            self.report({"ERROR"}, f"ShapeFlow: {exc}")
+            return {"CANCELLED"}
+
     lam_border: FloatProperty(
         name="λ Border", default=0.0, soft_min=-500.0, soft_max=500.0, step=10, precision=3,
         description="λ_b for the boundary vertices of open meshes (own sign); 0 keeps them fixed")
@@ -260,13 +268,6 @@ class OBJECT_OT_shapeflow_family(FlowOptions, Operator):
         col.prop(self, "color_end")
         col.prop(self, "use_materials")
 
-    def execute(self, context):
-        try:
-            return self._run(context)
-        except _errors() as exc:
-            self.report({"ERROR"}, f"ShapeFlow: {exc}")
-            return {"CANCELLED"}
-
     def _run(self, context):
         sf = _sf()
         ob = _active_mesh(context)
@@ -397,13 +398,6 @@ class OBJECT_OT_shapeflow_subdivide_enhance(FlowOptions, Operator):
         col.prop(self, "boundary")
         col.prop(self, "weights_rule")
         self.draw_flow_options(layout, _active_mesh(context))
-
-    def execute(self, context):
-        try:
-            return self._run(context)
-        except _errors() as exc:
-            self.report({"ERROR"}, f"ShapeFlow: {exc}")
-            return {"CANCELLED"}
 
     def _run(self, context):
         sf = _sf()
