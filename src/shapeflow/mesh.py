@@ -24,6 +24,7 @@ from typing import Iterable, Mapping
 
 import numpy as np
 
+from . import kernels
 from .errors import MeshError
 
 __all__ = ["Mesh", "Topology", "Diagnostics", "normalize_faces", "WEIGHT"]
@@ -127,6 +128,13 @@ def _validate_csr(indices: np.ndarray, offsets: np.ndarray, n: int) -> None:
                 f"({bad.size} such corners)"
             )
     # a vertex repeated inside one face: sort each face's corners, per face size
+    K = kernels.get(n)
+    if K is not None:
+        f = int(K.first_repeated_vertex_face(indices, offsets))
+        if f >= 0:
+            corners = indices[offsets[f]:offsets[f + 1]].tolist()
+            raise MeshError(f"face {f} repeats a vertex: {corners}")
+        return
     for s in np.unique(sizes):
         faces_s = np.flatnonzero(sizes == s)
         block = indices[offsets[faces_s][:, None] + np.arange(s)]
@@ -221,6 +229,9 @@ class Topology:
     @cached_property
     def _edge_data(self):
         fi = self.face_indices
+        K = kernels.get(self.n_vertices)
+        if K is not None:
+            return K.edge_data(fi, self.corner_next, self.n_vertices)
         a = fi
         b = fi[self.corner_next]
         lo = np.minimum(a, b)

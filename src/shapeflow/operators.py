@@ -49,6 +49,7 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 
+from . import kernels
 from .errors import ParameterError
 from .geometry import triangle_cotangents, vertex_normals
 
@@ -144,11 +145,51 @@ class _Structure:
         prv = topo.corner_prev
         corner_edge = topo.corner_edge
         edges = topo.edges
+        K = kernels.get(n)
+        if K is not None and (scheme == "blender" or sizes.size == 0 or int(sizes.max()) <= 4):
+            # no fan triangles: the compiled twin of the code below
+            self.corner_w, self.corner_aw, self.skip_pair, pairs = K.structure_core(
+                fi, offs, nxt, prv, corner_edge, edges, scheme == "tqlbo")
+            self.extra_tris = np.zeros((0, 3), np.int64)
+            self.extra_w = np.zeros(0)
+            self.extra_face = np.zeros(0, np.int64)
+            self.extra_pair = np.zeros((0, 3), np.int64)
+        else:
+            pairs = self._numpy_core(scheme, n, sizes, offs, fi, nxt, prv, corner_edge, edges)
+        self.pairs = pairs
+        self.n = n
+        self.corner_edge = corner_edge
+        self.nxt = nxt
+        self.prv = prv
+        self.fi = fi
+        # --- symmetric CSR pattern with diagonal (duplicates kept, columns sorted)
+        P = pairs.shape[0]
+        K = kernels.get(n)
+        if K is not None and 2 * P + n < 2**31 - 1:
+            indptr, indices, self.pos_upper, self.pos_lower, self.pos_diag = K.pair_pattern(pairs, n)
+        else:
+            rows = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])
+            cols = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)])
+            indptr, indices, entry_at = _csr_pattern(rows, cols, n)
+            pos_of = np.empty_like(entry_at)
+            pos_of[entry_at] = np.arange(entry_at.size)
+            self.pos_upper = pos_of[:P]
+            self.pos_lower = pos_of[P:2 * P]
+            self.pos_diag = pos_of[2 * P:]
+        # shared by every matrix built on this pattern: read-only, so no scipy
+        # operation can rewrite it in place for everyone
+        indptr.flags.writeable = False
+        indices.flags.writeable = False
+        self.indptr = indptr
+        self.indices = indices
+
+    def _numpy_core(self, scheme, n, sizes, offs, fi, nxt, prv, corner_edge, edges) -> np.ndarray:
+        """Corner weights, chords, skip pairs and n-gon fan triangles; returns the pairs."""
         n_edges = edges.shape[0]
         c = fi.size
         cs = np.repeat(sizes, sizes)
         self.corner_w, self.corner_aw = corner_weights(cs, scheme)
-        self.is_tri = cs == 3
+        is_tri = cs == 3
         # --- chords: the skip pair (prev, next) of corners of faces with >= 4 corners
         local = np.arange(c) - np.repeat(offs[:-1], sizes)
         ch = np.flatnonzero(cs >= 4)
@@ -199,7 +240,7 @@ class _Structure:
         skip_pair[primary] = n_edges + np.arange(n_primary)
         sec = ch[(cs[ch] == 4) & (local[ch] >= 2)]
         skip_pair[sec] = skip_pair[sec - 2]                   # a quad's corners k, k+2 share a diagonal
-        tri_c = np.flatnonzero(self.is_tri)
+        tri_c = np.flatnonzero(is_tri)
         skip_pair[tri_c] = corner_edge[nxt[tri_c]]            # a triangle's skip pair is an edge
         self.skip_pair = skip_pair
         if xt:
@@ -214,28 +255,7 @@ class _Structure:
             self.extra_w = np.zeros(0)
             self.extra_face = np.zeros(0, np.int64)
             self.extra_pair = np.zeros((0, 3), np.int64)
-        self.pairs = pairs
-        self.n = n
-        self.corner_edge = corner_edge
-        self.nxt = nxt
-        self.prv = prv
-        self.fi = fi
-        # --- symmetric CSR pattern with diagonal (duplicates kept, columns sorted)
-        P = pairs.shape[0]
-        rows = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])
-        cols = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)])
-        indptr, indices, entry_at = _csr_pattern(rows, cols, n)
-        # shared by every matrix built on this pattern: read-only, so no scipy
-        # operation can rewrite it in place for everyone
-        indptr.flags.writeable = False
-        indices.flags.writeable = False
-        self.indptr = indptr
-        self.indices = indices
-        pos_of = np.empty_like(entry_at)
-        pos_of[entry_at] = np.arange(entry_at.size)
-        self.pos_upper = pos_of[:P]
-        self.pos_lower = pos_of[P:2 * P]
-        self.pos_diag = pos_of[2 * P:]
+        return pairs
 
     def matrix(self, diag: np.ndarray, off: np.ndarray, *, copy_pattern: bool = False) -> sp.csr_matrix:
         """Symmetric CSR matrix with the given diagonal and per-pair values.
@@ -243,10 +263,15 @@ class _Structure:
         The index arrays are the shared, read-only pattern unless
         ``copy_pattern`` (needed before any in-place structural change).
         """
-        data = np.empty(self.indices.size)
-        data[self.pos_diag] = diag
-        data[self.pos_upper] = off
-        data[self.pos_lower] = off
+        K = kernels.get(self.n)
+        if K is not None:
+            data = K.fill_symmetric(self.indices.size, self.pos_diag, np.asarray(diag, np.float64),
+                                    self.pos_upper, self.pos_lower, np.asarray(off, np.float64))
+        else:
+            data = np.empty(self.indices.size)
+            data[self.pos_diag] = diag
+            data[self.pos_upper] = off
+            data[self.pos_lower] = off
         idx, ptr = (self.indices.copy(), self.indptr.copy()) if copy_pattern else (self.indices, self.indptr)
         M = sp.csr_matrix((data, idx, ptr), shape=(self.n, self.n), copy=False)
         M.has_sorted_indices = True
@@ -377,7 +402,12 @@ def _assemble(mesh, scheme: str, thresholds: str, vertices: np.ndarray | None = 
     V = mesh.vertices if vertices is None else vertices
     n = mesh.n_vertices
     fi = st.fi
-    cot_p, cot_c, cot_n, dbl, l_prev, l_next, l_skip = corner_cotangents(V, fi, st.nxt, st.prv)
+    K = kernels.get(n)
+    if K is not None:
+        cot_p, cot_c, cot_n, dbl, l_prev, l_next, l_skip = K.corner_cotangents(
+            np.ascontiguousarray(V, dtype=np.float64), fi, st.nxt, st.prv)
+    else:
+        cot_p, cot_c, cot_n, dbl, l_prev, l_next, l_skip = corner_cotangents(V, fi, st.nxt, st.prv)
     xcot, xdbl, xsq = triangle_cotangents(V, st.extra_tris)
     locked = np.zeros(n, dtype=bool)
     edges = mesh.topology.edges
@@ -406,19 +436,26 @@ def _assemble(mesh, scheme: str, thresholds: str, vertices: np.ndarray | None = 
         xbad = ~(xdbl > FLT_EPSILON)
         n_bad = int(bad.sum() + xbad.sum())
     w = np.where(bad, 0.0, st.corner_w)
-    # edge of corner k (curr -> next) gets cot at prev of triangle k and cot at next of triangle next(k)
-    wc_n = w * cot_n
-    h_edge = w * cot_p + wc_n[st.nxt]
-    skip = w * cot_c
     P = st.pairs.shape[0]
-    pw = np.bincount(st.corner_edge, h_edge, minlength=P) + np.bincount(st.skip_pair, skip, minlength=P)
+    if K is not None:
+        pw, ring = K.corner_scatter(w, cot_p, cot_c, cot_n, dbl, st.corner_aw, st.nxt, st.prv, fi,
+                                    st.corner_edge, st.skip_pair, P, n)
+    else:
+        # edge of corner k (curr -> next) gets cot at prev of triangle k and cot at next of triangle next(k)
+        wc_n = w * cot_n
+        h_edge = w * cot_p + wc_n[st.nxt]
+        skip = w * cot_c
+        pw = np.bincount(st.corner_edge, h_edge, minlength=P) + np.bincount(st.skip_pair, skip, minlength=P)
     if st.extra_tris.size:
         xv = (xcot * np.where(xbad, 0.0, st.extra_w)[:, None]).reshape(-1)
         pw += np.bincount(st.extra_pair.reshape(-1), xv, minlength=P)
-    deg = np.bincount(st.pairs[:, 0], pw, minlength=n) + np.bincount(st.pairs[:, 1], pw, minlength=n)
-    # ring area: each corner triangle's (weighted) area to its three vertices
-    ca = 0.5 * dbl * st.corner_aw
-    ring = np.bincount(fi, ca + ca[st.nxt] + ca[st.prv], minlength=n)
+    if K is not None:
+        deg = K.pair_degree(st.pairs, pw, n)
+    else:
+        deg = np.bincount(st.pairs[:, 0], pw, minlength=n) + np.bincount(st.pairs[:, 1], pw, minlength=n)
+        # ring area: each corner triangle's (weighted) area to its three vertices
+        ca = 0.5 * dbl * st.corner_aw
+        ring = np.bincount(fi, ca + ca[st.nxt] + ca[st.prv], minlength=n)
     if st.extra_tris.size:
         xa = 0.5 * xdbl * st.extra_w
         ring += np.bincount(st.extra_tris.reshape(-1), np.repeat(xa, 3), minlength=n)

@@ -1,0 +1,133 @@
+"""The compiled kernels (``fast`` extra) against their NumPy twins.
+
+Every test builds the same thing twice — kernels forced on for any size and
+kernels off — and compares.  Integer structures must be identical; floating
+results equal to rounding (the CG's parallel sums differ in order).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import shapeflow as sf
+from shapeflow import kernels
+from shapeflow.operators import _assemble, _Structure
+
+from conftest import shared_mesh_paths, load_fixture_mesh
+import meshgen
+
+pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba (the 'fast' extra) not installed")
+
+
+@pytest.fixture
+def forced(monkeypatch):
+    """Kernels for every size inside the test."""
+    monkeypatch.setattr(kernels, "MIN_SIZE", 0)
+
+
+def _meshes():
+    out = [
+        ("grid_quads", meshgen.grid(9, 7, jitter=0.2, seed=1)),
+        ("grid_mixed", meshgen.grid(8, 8, jitter=0.1, seed=2, mix=0.5)),
+        ("cube_sphere_mixed", meshgen.cube_sphere(6, mix=0.4, seed=3)),
+        ("icosphere", meshgen.icosphere(2)),
+        ("ngon_disk", meshgen.ngon_disk(7, 3)),
+    ]
+    for p in shared_mesh_paths()[:6]:
+        out.append((p.name, sf.load(p)))
+    return out
+
+
+MESHES = _meshes()
+
+
+def _fresh(m: sf.Mesh) -> sf.Mesh:
+    return sf.Mesh.from_csr(m.vertices, m.face_sizes, m.face_indices)
+
+
+@pytest.mark.parametrize("name,mesh", MESHES, ids=[n for n, _ in MESHES])
+def test_edges_identical(name, mesh, forced):
+    a = _fresh(mesh).topology
+    with kernels.enabled(False):
+        b = _fresh(mesh).topology
+        ref = b._edge_data
+    got = a._edge_data
+    for x, y in zip(got, ref):
+        np.testing.assert_array_equal(x, y)
+
+
+@pytest.mark.parametrize("scheme", ["tqlbo", "blender"])
+@pytest.mark.parametrize("name,mesh", MESHES, ids=[n for n, _ in MESHES])
+def test_structure_and_assembly_match(name, mesh, scheme, forced):
+    t = _fresh(mesh).topology
+    fast = _Structure(t, scheme)
+    with kernels.enabled(False):
+        slow = _Structure(t, scheme)
+    np.testing.assert_array_equal(fast.pairs, slow.pairs)
+    np.testing.assert_array_equal(fast.skip_pair, slow.skip_pair)
+    np.testing.assert_array_equal(fast.corner_w, slow.corner_w)
+    np.testing.assert_array_equal(fast.corner_aw, slow.corner_aw)
+    np.testing.assert_array_equal(fast.indptr, slow.indptr)
+    np.testing.assert_array_equal(fast.indices, slow.indices)
+    # positions may differ only among duplicate entries (a chord shared by two faces)
+    rng = np.random.default_rng(0)
+    d, o = rng.standard_normal(t.n_vertices), rng.standard_normal(fast.pairs.shape[0])
+    A, B = fast.matrix(d, o), slow.matrix(d, o)
+    assert abs(A - B).max() < 1e-14
+    for thresholds in ("relative", "blender"):
+        m1 = _fresh(mesh)
+        r_fast = _assemble(m1, scheme, thresholds)
+        with kernels.enabled(False):
+            m2 = _fresh(mesh)
+            r_slow = _assemble(m2, scheme, thresholds)
+        for x, y in zip(r_fast[1:4], r_slow[1:4]):   # pair weights, degree, ring area
+            np.testing.assert_allclose(x, y, rtol=1e-13, atol=1e-13 * np.abs(y).max())
+        np.testing.assert_array_equal(r_fast[4], r_slow[4])
+        assert r_fast[5] == r_slow[5]
+
+
+def test_repeated_vertex_found(forced):
+    with pytest.raises(sf.MeshError, match="face 1 repeats a vertex"):
+        sf.Mesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3, 2]])
+
+
+@pytest.mark.parametrize("lam", [1.0, -20.0])
+@pytest.mark.parametrize("name,mesh", MESHES[:4], ids=[n for n, _ in MESHES[:4]])
+def test_flow_same_result(name, mesh, lam, forced):
+    fast = sf.flow(_fresh(mesh), lam, lam_border=0.5, iterations=2)
+    with kernels.enabled(False):
+        slow = sf.flow(_fresh(mesh), lam, lam_border=0.5, iterations=2)
+    diag = np.linalg.norm(np.ptp(mesh.vertices, axis=0))
+    assert np.abs(fast.vertices - slow.vertices).max() < 1e-9 * diag
+    assert fast.report.cg_iterations == pytest.approx(slow.report.cg_iterations, abs=1)
+
+
+def test_cg_kernel_columns(forced):
+    """1, 2 and 3 columns; zero columns stay zero; same answer as the NumPy CG."""
+    from shapeflow.solvers import SPDSolver
+
+    m = meshgen.cube_sphere(8)
+    W = sf.cotan_weights(m).W
+    d = np.asarray(W.sum(axis=1)).ravel()
+    import scipy.sparse as sp
+
+    A = (sp.diags(2.0 * d) - W).tocsr()
+    A.indices = A.indices.astype(np.int32)
+    A.indptr = A.indptr.astype(np.int32)
+    rng = np.random.default_rng(4)
+    for k in (1, 2, 3):
+        B = rng.standard_normal((A.shape[0], k)) if k > 1 else rng.standard_normal(A.shape[0])
+        x = SPDSolver(A, "cg", rtol=1e-12).solve(B)
+        with kernels.enabled(False):
+            y = SPDSolver(A, "cg", rtol=1e-12).solve(B)
+        assert x.shape == B.shape
+        np.testing.assert_allclose(x, y, atol=1e-9 * np.abs(y).max())
+        np.testing.assert_allclose(A @ x, B, atol=1e-8 * np.abs(B).max())
+
+
+def test_small_meshes_do_not_use_kernels():
+    assert kernels.get(kernels.MIN_SIZE - 1) is None
+    assert kernels.get(kernels.MIN_SIZE) is not None
+    with kernels.enabled(False):
+        assert kernels.get(10**9) is None
