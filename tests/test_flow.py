@@ -315,3 +315,65 @@ def test_strength_must_be_non_negative():
     m = icosphere(2)
     np.testing.assert_array_equal(sf.enhance(m, 3.0).vertices, sf.flow(m, -3.0).vertices)
     np.testing.assert_array_equal(sf.smooth(m, 3.0).vertices, sf.flow(m, 3.0).vertices)
+
+
+# --- several fixed-operator steps as one Chebyshev expansion ----------------------------
+
+def _iterate_one_by_one(monkeypatch, mesh, lam, **kw):
+    """The reference: the same flow with the Chebyshev shortcut switched off (one CG solve per step)."""
+    with monkeypatch.context() as mp:
+        mp.setattr(sf.FlowSolver, "_fixed_steps", lambda *a, **k: None)
+        return sf.flow(mesh, lam, **kw)
+
+
+@pytest.mark.parametrize("lam", [2.0, -3.0])
+@pytest.mark.parametrize("case", ["closed_mixed", "open_fixed_rim", "weights_axes"])
+def test_fixed_steps_chebyshev_equals_iterating(monkeypatch, case, lam):
+    if case == "closed_mixed":
+        mesh, kw = cube_sphere(8, mix=0.4, seed=5), {}
+    elif case == "open_fixed_rim":          # boundary held: a constant coupling term g
+        mesh, kw = grid(14, 11, jitter=0.2, seed=6, mix=0.3), {}
+        mesh = mesh.with_vertices(mesh.vertices + np.c_[0 * mesh.vertices[:, :2], np.sin(mesh.vertices[:, 0] * 3)])
+    else:
+        mesh = cube_sphere(8, seed=7)
+        w = np.linspace(0.5, 1.0, mesh.n_vertices)
+        w[::7] = 0.0
+        kw = dict(weights=w, axes="xz")
+    kw["solver"] = "chebyshev"   # small meshes would pick a reused LU factorisation under "auto"
+    out = sf.flow(mesh, lam, iterations=6, rtol=1e-9, **kw)
+    assert out.report.solver == "chebyshev"
+    ref = _iterate_one_by_one(monkeypatch, mesh, lam, iterations=6, rtol=1e-12, **kw)
+    assert ref.report.solver != "chebyshev"
+    diag = np.linalg.norm(np.ptp(mesh.vertices, axis=0))
+    disp = np.abs(ref.vertices - mesh.vertices).max()
+    assert disp > 1e-3 * diag
+    assert np.abs(out.vertices - ref.vertices).max() < 1e-8 * disp
+    if "axes" in kw:
+        np.testing.assert_array_equal(out.vertices[:, 1], mesh.vertices[:, 1])
+        still = np.flatnonzero(kw["weights"] == 0)
+        np.testing.assert_array_equal(out.vertices[still], mesh.vertices[still])
+
+
+def test_fixed_steps_not_used_when_steps_are_not_one_linear_map():
+    mesh = grid(10, 10, jitter=0.1, seed=8)
+    mesh = mesh.with_vertices(mesh.vertices + np.c_[0 * mesh.vertices[:, :2], np.sin(mesh.vertices[:, 0] * 3)])
+    assert sf.flow(mesh, 1.0, iterations=4, solver="chebyshev").report.solver == "chebyshev"
+    assert sf.flow(mesh, 1.0, iterations=4, solver="cg").report.solver == "cg"      # asked for plain CG
+    assert sf.flow(mesh, 1.0, iterations=4, lam_border=0.5, solver="chebyshev").report.solver == "cg"
+    sphere = cube_sphere(6)
+    assert sf.flow(sphere, 1.0, iterations=4, preserve_volume=True, solver="chebyshev").report.solver == "cg"
+    assert sf.flow(sphere, 1.0, iterations=4, update="recompute", solver="chebyshev").report.solver == "cg"
+    assert sf.flow(sphere, 1.0, iterations=1, solver="chebyshev").report.solver == "cg"
+
+
+def test_chebyshev_coefficients_bound_the_error():
+    from shapeflow.solvers import chebyshev_coefficients
+    from numpy.polynomial import chebyshev
+
+    f = lambda t: (2.0 - 1.0 / t) ** 5      # noqa: E731
+    c, tail = chebyshev_coefficients(f, 1.0, 9.0)
+    x = np.linspace(-1, 1, 2001)
+    for m in (5, 10, 20):
+        err = np.abs(chebyshev.chebval(x, c[:m + 1]) - f(5.0 + 4.0 * x)).max()
+        assert err <= tail[m] * (1 + 1e-9) + 1e-13
+    assert tail[-1] == 0.0

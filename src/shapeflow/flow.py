@@ -57,12 +57,14 @@ from .errors import ParameterError
 from .geometry import signed_volume
 from .mesh import Mesh
 from .operators import _assemble, _check_scheme
-from .solvers import DEFAULT_RTOL, METHODS, SPDSolver, choose_method
+from .solvers import (DEFAULT_RTOL, METHODS, SPDSolver, chebyshev_coefficients, chebyshev_steps, choose_method,
+                      estimate_cg_iterations)
 
 __all__ = ["flow", "smooth", "enhance", "FlowReport", "FlowSolver", "COMPAT_MODES"]
 
 COMPAT_MODES = (None, "paper", "blender")
 UPDATES = ("fixed", "recompute")
+FLOW_SOLVERS = (*METHODS, "chebyshev")
 
 
 # --------------------------------------------------------------------------
@@ -277,8 +279,8 @@ class FlowSolver:
         if self.blender and scheme not in (None, "blender"):
             raise ParameterError(f"compat='blender' uses Blender's weights; scheme={scheme!r} is not allowed with it")
         self.scheme = _check_scheme(scheme or ("blender" if self.blender else "tqlbo"))
-        if solver not in METHODS:
-            raise ParameterError(f"unknown solver {solver!r}; choose one of {', '.join(METHODS)}")
+        if solver not in FLOW_SOLVERS:
+            raise ParameterError(f"unknown solver {solver!r}; choose one of {', '.join(FLOW_SOLVERS)}")
         self.mesh = mesh
         self.lam_border = _finite("lam_border", lam_border)
         self.normalized = bool(normalized)
@@ -298,6 +300,8 @@ class FlowSolver:
         return _build_operator(self.mesh, V, self.scheme, self.blender, self.normalized)
 
     def _method(self, n_free: int, kappa: float, n_solves: int) -> str:
+        if self.solver_method == "chebyshev":
+            return "cg"   # single steps; several fixed steps go through _fixed_steps
         if self.solver_method != "auto":
             return self.solver_method
         return choose_method(n_free, kappa, n_solves, self.rtol)
@@ -401,6 +405,77 @@ class FlowSolver:
         out[:, axes] += d[:, axes]
         return out
 
+    def _fixed_steps(self, V: np.ndarray, lam: float, k: int, isys: _System, axes: np.ndarray,
+                     report: FlowReport) -> np.ndarray | None:
+        """All ``k`` steps of a fixed operator at once, by a Chebyshev expansion.
+
+        With the operator fixed, no boundary step and no volume rescaling, the
+        k steps are one affine map.  In u = C^½ x on the free rows, with
+        S = C^-½ A C^-½ (spectrum in [1, b], b from Gershgorin) and
+        h = C^-½ g (the fixed neighbours' terms), a step is
+        u ← a(S) u + b(S) h with a(t) = 1/t, b(t) = 1/t for λ > 0 and
+        a(t) = 2 − 1/t, b(t) = −1/t for λ < 0; so
+        u_k = a(S)^k u_0 + b(S) Σ_{j<k} a(S)^j h.  Both functions are applied by
+        one Chebyshev recurrence (a sparse product per degree), stopped when
+        the bound on what is left falls below ``rtol`` × the displacement —
+        the accuracy of k CG solves, for the price of about two.  Returns None
+        (iterate instead) when the expansion would cost more than iterating.
+        """
+        free = isys.free
+        A = isys.A
+        isq = np.zeros(V.shape[0])
+        isq[free] = 1.0 / np.sqrt(isys.c[free])
+        # Gershgorin bound of S on the free rows (non-free rows are identity rows of A)
+        absA = sp.csr_matrix((np.abs(A.data), A.indices, A.indptr), shape=A.shape)  # duplicates kept: a bound still
+        upper = float((isq * (absA @ isq))[free].max())
+        lo, hi = 1.0, max(upper, 1.0 + 1e-12)
+        if lam > 0:
+            fa = lambda t: 1.0 / t                     # noqa: E731
+            fb = lambda t: 1.0 / t                     # noqa: E731
+        else:
+            fa = lambda t: 2.0 - 1.0 / t               # noqa: E731
+            fb = lambda t: -1.0 / t                    # noqa: E731
+
+        def fu(t):
+            return fa(t) ** k
+
+        def fh(t):
+            at = fa(t)
+            acc = np.ones_like(t)
+            for _ in range(k - 1):
+                acc = 1.0 + at * acc
+            return fb(t) * acc
+
+        cu, tu = chebyshev_coefficients(fu, lo, hi)
+        ch, th = chebyshev_coefficients(fh, lo, hi)
+        n_c = min(cu.size, ch.size)
+        ok = (tu[:n_c] <= 1e-12 * np.abs(cu).sum()) & (th[:n_c] <= 1e-12 * np.abs(ch).sum())
+        need = int(np.argmax(ok)) if ok.any() else 0
+        if need == 0 or need > 0.5 * k * estimate_cg_iterations(hi, self.rtol):
+            return None
+        r, s_, e = isys.coupling
+        n = V.shape[0]
+        cols = np.flatnonzero(axes)
+        X0 = np.zeros((n, 3))
+        G = np.zeros((n, 3))
+        X0[free] = V[free]
+        X0[:, ~axes] = 0.0
+        if r.size:
+            for q in cols:
+                G[:, q] = np.bincount(r, e * V[s_, q], minlength=n)
+        c_full = np.where(free, isys.c, 0.0)
+        Y, degree = chebyshev_steps(A, c_full, X0, G, lo, hi, (cu, tu), (ch, th), self.rtol, need)
+        if Y is None or not np.all(np.isfinite(Y)):
+            return None
+        out = V.copy()
+        sub = out[free]
+        sub[:, cols] = Y[free][:, cols]
+        out[free] = sub
+        report.solver = "chebyshev"
+        report.notes.append(f"{k} fixed-operator steps as one Chebyshev expansion of degree {degree} "
+                            f"(spectrum bound [1, {hi:.3g}])")
+        return out
+
     # --- volume ------------------------------------------------------------------
     def _preserve_volume(self, V_before: np.ndarray, V_after: np.ndarray, axes: np.ndarray,
                          center0: np.ndarray, report: FlowReport) -> np.ndarray:
@@ -476,6 +551,15 @@ class FlowSolver:
                 if isys is None and bsys is None:
                     report.notes.append("no free vertex: input returned unchanged")
                     break
+            if it == 0 and update == "fixed" and iterations >= 2 and not preserve_volume and bsys is None \
+                    and isys is not None and isys.solver.method == "cg" \
+                    and self.solver_method in ("auto", "chebyshev"):
+                V_all = self._fixed_steps(V, lam, int(iterations), isys, ax, report)
+                if V_all is not None:
+                    V = V_all
+                    if progress is not None:
+                        progress(int(iterations), int(iterations))
+                    break
             V_new = self._step(V, lam, lam_b, isys, bsys, op.boundary, ax, report)
             if preserve_volume:
                 V_new = self._preserve_volume(V, V_new, ax, center0, report)
@@ -537,8 +621,11 @@ def flow(mesh: Mesh, lam: float, *, lam_border: float = 0.0, iterations: int = 1
     compat : None or "blender"
         ``"blender"`` reproduces Blender's Laplacian Smooth modifier exactly
         (see the module docstring for every difference).
-    solver : {"auto", "cg", "cholesky", "lu"}
+    solver : {"auto", "cg", "cholesky", "lu", "chebyshev"}
         Linear solver (:mod:`shapeflow.solvers`); "auto" picks by cost.
+        ``"chebyshev"``: several fixed-operator steps as one Chebyshev
+        expansion (CG for a single step); "auto" uses it where it picks CG and
+        the expansion is cheaper than one CG solve per step.
     rtol : float
         CG tolerance, relative to the initial residual of each solve.
     progress : callable(done, total), optional

@@ -203,3 +203,94 @@ class SPDSolver:
         if not np.all(np.isfinite(X)):
             raise FloatingPointError("CG produced non-finite values")
         return X[:, 0].copy() if squeeze else X[:, :k].copy()
+
+
+def chebyshev_coefficients(f, a: float, b: float, max_degree: int = 2048):
+    """Chebyshev coefficients of ``f`` on [a, b] and their tail sums.
+
+    ``f`` maps t (array) to values; returns ``c`` (f ≈ Σ c_j T_j(x), t = mid +
+    half·x) and ``tail`` with tail[j] = Σ_{i>j} |c_i|, the uniform bound of the
+    error left after the terms 0..j.  The degree doubles from 64 until the last
+    coefficients are at rounding level; coefficients below 2e-14 × Σ|c| (the
+    interpolation's noise) are set to zero, so the tail of a resolved function
+    reaches 0.
+    """
+    from numpy.polynomial import chebyshev
+
+    mid, half = 0.5 * (a + b), 0.5 * (b - a)
+    degree = 64
+    while True:
+        c = chebyshev.chebinterpolate(lambda x: f(mid + half * x), degree)
+        scale = np.abs(c).sum()
+        if np.abs(c[-8:]).max() <= 2e-14 * scale or degree >= max_degree:
+            break
+        degree *= 2
+    c[np.abs(c) < 2e-14 * scale] = 0.0
+    ac = np.abs(c)
+    tail = np.concatenate([np.cumsum(ac[::-1])[::-1][1:], [0.0]])
+    return c, tail
+
+
+def chebyshev_steps(A: sp.csr_matrix, c: np.ndarray, X0: np.ndarray, G: np.ndarray, a: float, b: float,
+                    coef_u, coef_h, rtol: float, max_degree: int):
+    """X = f_u(C⁻¹A) X0 + f_h(C⁻¹A) C⁻¹G by one Chebyshev recurrence.
+
+    ``A`` is symmetric with ``A − C`` positive semi-definite on the rows where
+    ``c`` > 0 (the others must be zero in X0 and G), so the spectrum of
+    C⁻¹A (similar to the symmetric C^-½ A C^-½) lies in [a, b].  ``coef_u``,
+    ``coef_h`` are (coefficients, tails) from :func:`chebyshev_coefficients`.
+    The recurrence Z_{j+1} = 2 Ã Z_j − Z_{j−1}, Ã = (2C⁻¹A − (a+b))/(b − a),
+    runs on the six columns [X0, C⁻¹G]; it stops once, for every column, the
+    uniform bound of the terms left, tail_u·‖X0‖ + tail_h·‖C⁻¹G‖ (norms
+    weighted by C, the symmetric form's), is below ``rtol`` × the C-norm of
+    X − X0.  Returns (X, degree), or (None, degree) if ``max_degree`` came first.
+    """
+    n = A.shape[0]
+    cu, tu = coef_u
+    ch, th = coef_h
+    cinv = np.divide(1.0, c, out=np.zeros_like(c), where=c > 0)
+    Z0 = np.zeros((n, 6))
+    Z0[:, :3] = X0
+    Z0[:, 3:] = G * cinv[:, None]
+    nu = np.sqrt((c[:, None] * Z0[:, :3] ** 2).sum(axis=0))
+    nh = np.sqrt((c[:, None] * Z0[:, 3:] ** 2).sum(axis=0))
+    alpha, beta = 2.0 / (b - a), (a + b) / (b - a)
+    K = kernels.get(n)
+    use_k = K is not None and A.indices.dtype == np.int32 and A.indptr.dtype == np.int32
+    data = np.ascontiguousarray(A.data, dtype=np.float64)
+
+    def step(Zcur, Zprev, Y, j):
+        """Zprev <- next term (in place), Y += its share; returns the C-norm² of Y − X0."""
+        if use_k:
+            return K.chebyshev_step(A.indptr, A.indices, data, cinv, Zcur, Zprev, Y, X0, c, alpha, beta,
+                                    cu[j], ch[j])
+        AZ = A @ Zcur
+        Zprev *= -1.0
+        Zprev += 2.0 * (alpha * cinv[:, None] * AZ - beta * Zcur)
+        Y += cu[j] * Zprev[:, :3] + ch[j] * Zprev[:, 3:]
+        D = Y - X0
+        return (c[:, None] * D * D).sum(axis=0)
+
+    Y = cu[0] * Z0[:, :3] + ch[0] * Z0[:, 3:]
+    Zprev, Zcur = Z0.copy(), np.zeros((n, 6))
+    # Z1 = Ã Z0: the recurrence with Z_{-1} = -Z0 gives 2ÃZ0 - (-Z0)... use the plain form once
+    if use_k:
+        Zcur[:] = 0.0
+        half = Z0 * 0.5
+        K.chebyshev_step(A.indptr, A.indices, data, cinv, half, Zcur, np.zeros((n, 3)), X0, c, alpha, beta,
+                         0.0, 0.0)
+    else:
+        Zcur[:] = alpha * cinv[:, None] * (A @ Z0) - beta * Z0
+    Y += cu[1] * Zcur[:, :3] + ch[1] * Zcur[:, 3:]
+    j = 1
+    D = Y - X0
+    change2 = (c[:, None] * D * D).sum(axis=0)
+    while True:
+        bound = tu[j] * nu + th[j] * nh
+        if np.all(bound <= rtol * np.sqrt(change2)) or np.all(bound <= 1e-15 * (nu + nh)):
+            return Y, j
+        if j >= max_degree:
+            return None, j
+        j += 1
+        change2 = step(Zcur, Zprev, Y, j)
+        Zprev, Zcur = Zcur, Zprev

@@ -30,7 +30,7 @@ def _add_common(p) -> None:
                    help="cotangent weights (default: tqlbo, or blender with --compat blender)")
     p.add_argument("--update", choices=["fixed", "recompute"], default="fixed",
                    help="keep the first iteration's operator (Blender) or rebuild it every iteration")
-    p.add_argument("--solver", choices=["auto", "cg", "cholesky", "lu"], default="auto", help="linear solver")
+    p.add_argument("--solver", choices=["auto", "cg", "cholesky", "lu", "chebyshev"], default="auto", help="linear solver")
     p.add_argument("--force", action="store_true", help="allow OUTPUT to be the input file (overwrite it)")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress or summary on stderr")
     add_image_options(p)
