@@ -428,21 +428,6 @@ def structure_core(fi, offsets, nxt, prv, corner_edge, edges, tqlbo):
 
 
 @njit(parallel=True, cache=True, fastmath=False)
-def spmm(indptr, indices, data, X, out):
-    """out = A X for X (n, k), reading the matrix once."""
-    n = indptr.size - 1
-    k = X.shape[1]
-    for i in prange(n):
-        for c in range(k):
-            out[i, c] = 0.0
-        for q in range(indptr[i], indptr[i + 1]):
-            j = indices[q]
-            v = data[q]
-            for c in range(k):
-                out[i, c] += v * X[j, c]
-
-
-@njit(parallel=True, cache=True, fastmath=False)
 def chebyshev_step(indptr, indices, data, cinv, Zcur, Zprev, Y, X0, cw, alpha, beta, cu, ch):
     """One degree of ``solvers.chebyshev_steps`` (see there), fused; returns Σ cw·(Y − X0)² per column."""
     n = indptr.size - 1

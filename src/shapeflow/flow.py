@@ -468,9 +468,8 @@ class FlowSolver:
         if Y is None or not np.all(np.isfinite(Y)):
             return None
         out = V.copy()
-        sub = out[free]
-        sub[:, cols] = Y[free][:, cols]
-        out[free] = sub
+        rows = np.ix_(np.flatnonzero(free), cols)
+        out[rows] = Y[rows]
         report.solver = "chebyshev"
         report.notes.append(f"{k} fixed-operator steps as one Chebyshev expansion of degree {degree} "
                             f"(spectrum bound [1, {hi:.3g}])")

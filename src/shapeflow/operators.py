@@ -164,7 +164,6 @@ class _Structure:
         self.fi = fi
         # --- symmetric CSR pattern with diagonal (duplicates kept, columns sorted)
         P = pairs.shape[0]
-        K = kernels.get(n)
         if K is not None and 2 * P + n < 2**31 - 1:
             indptr, indices, self.pos_upper, self.pos_lower, self.pos_diag = K.pair_pattern(pairs, n)
         else:

@@ -165,7 +165,7 @@ class SPDSolver:
         P = Z.copy()
         AP = np.empty_like(P)
         T = np.empty_like(P)
-        maxiter = self.maxiter or max(200, 10 * int(np.sqrt(n)) + 100)
+        maxiter = self._maxiter(n)
         it = 0
         while it < maxiter and (rz > tol2).any():
             it += 1
@@ -183,9 +183,11 @@ class SPDSolver:
             P *= beta[:, None]
             P += Z
         self.stats.iterations = it
-        if not np.all(np.isfinite(X)):
-            raise FloatingPointError("CG produced non-finite values")
+        _check_finite(X)
         return X[0] if squeeze else np.ascontiguousarray(X.T)
+
+    def _maxiter(self, n: int) -> int:
+        return self.maxiter or max(200, 10 * int(np.sqrt(n)) + 100)
 
     def _cg_kernel(self, K, B: np.ndarray, X0: np.ndarray | None, squeeze: bool) -> np.ndarray:
         """The same Jacobi-PCG as :meth:`_cg`, compiled (both cores), (n, 3) layout."""
@@ -197,12 +199,16 @@ class SPDSolver:
         X = np.zeros((n, 3))
         if X0 is not None:
             X[:, :k] = np.asarray(X0, dtype=np.float64).reshape(n, k)
-        maxiter = self.maxiter or max(200, 10 * int(np.sqrt(n)) + 100)
         data = np.ascontiguousarray(A.data, dtype=np.float64)
-        self.stats.iterations = int(K.pcg3(A.indptr, A.indices, data, self._minv, B3, X, self.rtol, maxiter))
-        if not np.all(np.isfinite(X)):
-            raise FloatingPointError("CG produced non-finite values")
+        self.stats.iterations = int(K.pcg3(A.indptr, A.indices, data, self._minv, B3, X, self.rtol,
+                                           self._maxiter(n)))
+        _check_finite(X)
         return X[:, 0].copy() if squeeze else X[:, :k].copy()
+
+
+def _check_finite(X: np.ndarray) -> None:
+    if not np.all(np.isfinite(X)):
+        raise FloatingPointError("CG produced non-finite values")
 
 
 def chebyshev_coefficients(f, a: float, b: float, max_degree: int = 2048):
@@ -272,19 +278,10 @@ def chebyshev_steps(A: sp.csr_matrix, c: np.ndarray, X0: np.ndarray, G: np.ndarr
         return (c[:, None] * D * D).sum(axis=0)
 
     Y = cu[0] * Z0[:, :3] + ch[0] * Z0[:, 3:]
-    Zprev, Zcur = Z0.copy(), np.zeros((n, 6))
-    # Z1 = Ã Z0: the recurrence with Z_{-1} = -Z0 gives 2ÃZ0 - (-Z0)... use the plain form once
-    if use_k:
-        Zcur[:] = 0.0
-        half = Z0 * 0.5
-        K.chebyshev_step(A.indptr, A.indices, data, cinv, half, Zcur, np.zeros((n, 3)), X0, c, alpha, beta,
-                         0.0, 0.0)
-    else:
-        Zcur[:] = alpha * cinv[:, None] * (A @ Z0) - beta * Z0
-    Y += cu[1] * Zcur[:, :3] + ch[1] * Zcur[:, 3:]
+    # Z1 = ÃZ0 is the same step from (Z0/2, 0): 2Ã(Z0/2) − 0
+    Zprev, Zcur = Z0, np.zeros((n, 6))
     j = 1
-    D = Y - X0
-    change2 = (c[:, None] * D * D).sum(axis=0)
+    change2 = step(0.5 * Z0, Zcur, Y, j)
     while True:
         bound = tu[j] * nu + th[j] * nh
         if np.all(bound <= rtol * np.sqrt(change2)) or np.all(bound <= 1e-15 * (nu + nh)):
