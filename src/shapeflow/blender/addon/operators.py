@@ -136,6 +136,11 @@ def _active_mesh(context):
     return ob if ob is not None and ob.type == "MESH" else None
 
 
+def _mesh_in_object_mode(context) -> bool:
+    ob = _active_mesh(context)
+    return ob is not None and ob.mode == "OBJECT"
+
+
 def _read(ob):
     V = bridge.read_object_positions(ob)
     sizes, corners = bridge.read_faces(ob.data)
@@ -256,8 +261,7 @@ class OBJECT_OT_shapeflow_family(FlowOptions, Operator):
 
     @classmethod
     def poll(cls, context):
-        ob = _active_mesh(context)
-        return ob is not None and ob.mode == "OBJECT"
+        return _mesh_in_object_mode(context)
 
     def draw(self, context):
         layout = self.layout
@@ -387,8 +391,7 @@ class OBJECT_OT_shapeflow_subdivide_enhance(FlowOptions, Operator):
 
     @classmethod
     def poll(cls, context):
-        ob = _active_mesh(context)
-        return ob is not None and ob.mode == "OBJECT"
+        return _mesh_in_object_mode(context)
 
     def draw(self, context):
         layout = self.layout
