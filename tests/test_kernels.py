@@ -26,8 +26,19 @@ def forced(monkeypatch):
     monkeypatch.setattr(kernels, "MIN_SIZE", 0)
 
 
+def _degenerate_grid() -> sf.Mesh:
+    """Mixed grid with a zero-length edge, a flat corner triangle and a sub-1e-5 face (locks, bad corners)."""
+    m = meshgen.grid(9, 7, jitter=0.1, seed=4, mix=0.4, z=lambda x, y: 0.1 * np.sin(x) * y)
+    V = m.vertices.copy()
+    V[12] = V[13]                          # zero-length edge
+    V[30] = 0.5 * (V[29] + V[31])          # flat triangles around vertex 30
+    V[45] = V[44] + 1e-7 * (V[45] - V[44])  # tiny elements (Blender's absolute rule)
+    return sf.Mesh.from_csr(V, m.face_sizes, m.face_indices)
+
+
 def _meshes():
     out = [
+        ("degenerate_grid", _degenerate_grid()),
         ("grid_quads", meshgen.grid(9, 7, jitter=0.2, seed=1)),
         ("grid_mixed", meshgen.grid(8, 8, jitter=0.1, seed=2, mix=0.5)),
         ("cube_sphere_mixed", meshgen.cube_sphere(6, mix=0.4, seed=3)),
@@ -85,6 +96,8 @@ def test_structure_and_assembly_match(name, mesh, scheme, forced):
             np.testing.assert_allclose(x, y, rtol=1e-13, atol=1e-13 * np.abs(y).max())
         np.testing.assert_array_equal(r_fast[4], r_slow[4])
         assert r_fast[5] == r_slow[5]
+        if name == "degenerate_grid":   # the locking rules were exercised
+            assert r_slow[4].sum() >= 4 and r_slow[5] >= 1
 
 
 def test_repeated_vertex_found(forced):

@@ -3,12 +3,25 @@
 Every kernel here has a NumPy/SciPy twin that stays the reference: the tests
 run both and compare.  Kernels are compiled on first use and cached on disk
 (``cache=True``), so a new process pays the compilation once per machine.
+
+Large arrays are allocated by NumPy in the plain-Python wrappers and filled by
+the compiled ``_`` functions: NumPy asks the kernel for transparent huge
+pages on big allocations, numba's allocator does not, and on virtual machines
+first-touch page faults otherwise cost more than the loops (measured: 100 MB
+fresh costs ~15 ms through NumPy against ~75 ms through numba).
 """
 
 from __future__ import annotations
 
 import numpy as np
 from numba import njit, prange
+
+
+def _zeros(shape, dtype=np.float64):
+    """np.zeros through np.empty: calloc'd memory faults in 4 KiB pages, NumPy's empty gets huge pages."""
+    a = np.empty(shape, dtype)
+    a.fill(0)
+    return a
 
 
 # --------------------------------------------------------------------------
@@ -89,7 +102,6 @@ def _update_p(P, R, minv, beta):
         P[i, 2] = R[i, 2] * m + b2 * P[i, 2]
 
 
-@njit(cache=True)
 def pcg3(indptr, indices, data, minv, B, X, rtol, maxiter):
     """Jacobi-PCG on the columns of B (n, 3), X (n, 3) warm start, updated in place.
 
@@ -97,11 +109,14 @@ def pcg3(indptr, indices, data, minv, B, X, rtol, maxiter):
     (α = 0, β = 1) once its preconditioned residual norm fell below ``rtol`` ×
     its initial value.  Returns the iteration count.
     """
+    work = np.empty((3, B.shape[0], 3))
+    return _pcg3(indptr, indices, data, minv, B, X, rtol, maxiter, work[0], work[1], work[2])
+
+
+@njit(cache=True)
+def _pcg3(indptr, indices, data, minv, B, X, rtol, maxiter, P, AP, R):
     n = B.shape[0]
     k = 3
-    P = np.empty((n, 3))
-    AP = np.empty((n, 3))
-    R = np.empty((n, 3))
     _spmm_dot(indptr, indices, data, X, R, k)
     rz = np.zeros(3)
     for i in range(n):
@@ -141,7 +156,6 @@ def pcg3(indptr, indices, data, minv, B, X, rtol, maxiter):
 # topology: unique edges (Topology._edge_data)
 # --------------------------------------------------------------------------
 
-@njit(cache=True)
 def edge_data(fi, nxt, n):
     """Same outputs as the NumPy ``Topology._edge_data``.
 
@@ -150,9 +164,23 @@ def edge_data(fi, nxt, n):
     vertex (stable), which is the order of a stable argsort of lo·n + hi.
     """
     c = fi.size
-    lo = np.empty(c, np.int64)
-    hi = np.empty(c, np.int64)
-    start = np.zeros(n + 1, np.int64)
+    vt = np.int32 if n < 2**31 - 1 else np.int64
+    lo = np.empty(c, vt)
+    hi = np.empty(c, vt)
+    order = np.empty(c, np.int64)
+    corner_edge = np.empty(c, np.int64)
+    starts = np.empty(c + 1, np.int64)
+    n_e = _edge_data(fi, nxt, n, lo, hi, order, corner_edge, starts, _zeros(n + 1, np.int64), np.empty(n, np.int64))
+    firsts = order[starts[:n_e]]
+    edges = np.empty((n_e, 2), np.int64)
+    edges[:, 0] = lo[firsts]
+    edges[:, 1] = hi[firsts]
+    return edges, corner_edge, starts[:n_e + 1].copy(), order
+
+
+@njit(cache=True)
+def _edge_data(fi, nxt, n, lo, hi, order, corner_edge, starts, start, fill):
+    c = fi.size
     for k in range(c):
         a = fi[k]
         b = fi[nxt[k]]
@@ -165,8 +193,7 @@ def edge_data(fi, nxt, n):
         start[lo[k] + 1] += 1
     for v in range(n):
         start[v + 1] += start[v]
-    fill = start[:-1].copy()
-    order = np.empty(c, np.int64)
+    fill[:] = start[:-1]
     for k in range(c):
         v = lo[k]
         order[fill[v]] = k
@@ -183,27 +210,19 @@ def edge_data(fi, nxt, n):
                 order[r + 1] = order[r]
                 r -= 1
             order[r + 1] = k
-    corner_edge = np.empty(c, np.int64)
     n_e = 0
-    firsts = np.empty(c, np.int64)
-    starts = np.empty(c + 1, np.int64)
     prev_lo = -1
     prev_hi = -1
     for q in range(c):
         k = order[q]
         if lo[k] != prev_lo or hi[k] != prev_hi:
-            firsts[n_e] = k
             starts[n_e] = q
             n_e += 1
             prev_lo = lo[k]
             prev_hi = hi[k]
         corner_edge[k] = n_e - 1
     starts[n_e] = c
-    edges = np.empty((n_e, 2), np.int64)
-    for e in range(n_e):
-        edges[e, 0] = lo[firsts[e]]
-        edges[e, 1] = hi[firsts[e]]
-    return edges, corner_edge, starts[:n_e + 1].copy(), order
+    return n_e
 
 
 @njit(cache=True)
@@ -225,50 +244,88 @@ def first_repeated_vertex_face(fi, offsets):
 # the operator's sparse pattern (operators._Structure)
 # --------------------------------------------------------------------------
 
-@njit(cache=True)
 def fill_symmetric(nnz, pos_diag, diag, pos_upper, pos_lower, off):
     """The data array of a matrix on a ``_Structure`` pattern."""
     data = np.empty(nnz)
+    _fill_symmetric(data, pos_diag, diag, pos_upper, pos_lower, off)
+    return data
+
+
+@njit(cache=True)
+def _fill_symmetric(data, pos_diag, diag, pos_upper, pos_lower, off):
     for i in range(pos_diag.size):
         data[pos_diag[i]] = diag[i]
     for p in range(pos_upper.size):
         data[pos_upper[p]] = off[p]
         data[pos_lower[p]] = off[p]
-    return data
 
 
 # --------------------------------------------------------------------------
 # assembly (operators.corner_cotangents and the scatters of operators._assemble)
 # --------------------------------------------------------------------------
 
+def assemble_corners(V, fi, nxt, prv, corner_edge, skip_pair, corner_w, corner_aw, n_edges, edges,
+                     P, n, blender_rules, rel_edge_tol, rel_shape_tol, blender_min, flt_eps):
+    """``operators._assemble`` for the corner triangles in two passes, no per-corner temporaries.
+
+    Same cotangent formulas and order of operations per corner as
+    ``operators.corner_cotangents``, same locking rules; the pair weights and
+    ring areas are summed in corner order instead of by ``bincount`` (equal to
+    rounding).  Returns pair weights (P,), ring areas (n,), locked (n,) and
+    the number of excluded corner triangles.
+    """
+    elen2 = np.empty(n_edges)
+    locked = _zeros(n, np.bool_)
+    pw = _zeros(P)
+    ring = _zeros(n)
+    n_bad = _assemble_corners(V, fi, nxt, prv, corner_edge, skip_pair, corner_w, corner_aw, edges,
+                              blender_rules, rel_edge_tol, rel_shape_tol, blender_min, flt_eps,
+                              elen2, locked, pw, ring)
+    return pw, ring, locked, int(n_bad)
+
+
 @njit(cache=True)
-def corner_cotangents(V, fi, nxt, prv):
-    """Same formulas, same order of operations as ``operators.corner_cotangents``."""
+def _assemble_corners(V, fi, nxt, prv, corner_edge, skip_pair, corner_w, corner_aw, edges,
+                      blender_rules, rel_edge_tol, rel_shape_tol, blender_min, flt_eps,
+                      elen2, locked, pw, ring):
     c = fi.size
-    ex = np.empty(c)
-    ey = np.empty(c)
-    ez = np.empty(c)
+    n_edges = elen2.size
+    # pass 1: squared edge lengths, from each corner's half-edge curr -> next
     for k in range(c):
         a = fi[k]
         b = fi[nxt[k]]
-        ex[k] = V[b, 0] - V[a, 0]
-        ey[k] = V[b, 1] - V[a, 1]
-        ez[k] = V[b, 2] - V[a, 2]
-    cot_p = np.empty(c)
-    cot_c = np.empty(c)
-    cot_n = np.empty(c)
-    dbl = np.empty(c)
-    l_prev = np.empty(c)
-    l_next = np.empty(c)
-    l_skip = np.empty(c)
+        dx = V[b, 0] - V[a, 0]
+        dy = V[b, 1] - V[a, 1]
+        dz = V[b, 2] - V[a, 2]
+        elen2[corner_edge[k]] = dx * dx + dy * dy + dz * dz
+    if blender_rules:
+        thr = blender_min * blender_min
+        for e in range(n_edges):
+            if elen2[e] < thr:
+                locked[edges[e, 0]] = True
+                locked[edges[e, 1]] = True
+    else:
+        h = 0.0
+        for e in range(n_edges):
+            h += np.sqrt(elen2[e])
+        h = h / n_edges if n_edges else 0.0
+        thr = (rel_edge_tol * h) ** 2
+        for e in range(n_edges):
+            if elen2[e] <= thr:
+                locked[edges[e, 0]] = True
+                locked[edges[e, 1]] = True
+    # pass 2: per corner triangle (prev, curr, next)
+    n_bad = 0
     for k in range(c):
-        j = prv[k]
-        px = ex[j]
-        py = ey[j]
-        pz = ez[j]
-        qx = ex[k]
-        qy = ey[k]
-        qz = ez[k]
+        ia = fi[prv[k]]
+        ib = fi[k]
+        ic = fi[nxt[k]]
+        px = V[ib, 0] - V[ia, 0]
+        py = V[ib, 1] - V[ia, 1]
+        pz = V[ib, 2] - V[ia, 2]
+        qx = V[ic, 0] - V[ib, 0]
+        qy = V[ic, 1] - V[ib, 1]
+        qz = V[ic, 2] - V[ib, 2]
         ln = qx * qx + qy * qy + qz * qz
         lp = px * px + py * py + pz * pz
         dot = -(px * qx + py * qy + pz * qz)
@@ -276,62 +333,77 @@ def corner_cotangents(V, fi, nxt, prv):
         cy = pz * qx - px * qz
         cz = px * qy - py * qx
         d = np.sqrt(cx * cx + cy * cy + cz * cz)
+        if blender_rules:
+            if 0.5 * d < blender_min:
+                locked[ib] = True
+            bad = not (d > flt_eps)
+        else:
+            ls = lp + ln - 2.0 * dot
+            bad = d <= rel_shape_tol * max(max(lp, ln), ls)
+            if bad:
+                locked[ia] = True
+                locked[ib] = True
+                locked[ic] = True
+        ca = 0.5 * d * corner_aw[k]
+        ring[ia] += ca
+        ring[ib] += ca
+        ring[ic] += ca
+        if bad:
+            n_bad += 1
+            continue
         inv = 1.0 / d if d > 0.0 else 0.0
-        cot_c[k] = dot * inv
-        cot_p[k] = (lp - dot) * inv
-        cot_n[k] = (ln - dot) * inv
-        dbl[k] = d
-        l_prev[k] = lp
-        l_next[k] = ln
-        l_skip[k] = lp + ln - 2.0 * dot
-    return cot_p, cot_c, cot_n, dbl, l_prev, l_next, l_skip
+        w = corner_w[k]
+        pw[corner_edge[k]] += w * ((lp - dot) * inv)        # angle at prev, opposite curr-next
+        pw[corner_edge[prv[k]]] += w * ((ln - dot) * inv)   # angle at next, opposite prev-curr
+        pw[skip_pair[k]] += w * (dot * inv)                 # angle at curr, opposite prev-next
+    return n_bad
 
 
-@njit(cache=True)
-def corner_scatter(w, cot_p, cot_c, cot_n, dbl, aw, nxt, prv, fi, corner_edge, skip_pair, P, n):
-    """Pair weights (edge part + skip part), ring areas, as ``_assemble``'s bincounts."""
-    c = fi.size
-    pe = np.zeros(P)
-    ps = np.zeros(P)
-    ring = np.zeros(n)
-    for k in range(c):
-        pe[corner_edge[k]] += w[k] * cot_p[k] + w[nxt[k]] * cot_n[nxt[k]]
-        ps[skip_pair[k]] += w[k] * cot_c[k]
-    for k in range(c):
-        ring[fi[k]] += 0.5 * dbl[k] * aw[k] + 0.5 * dbl[nxt[k]] * aw[nxt[k]] + 0.5 * dbl[prv[k]] * aw[prv[k]]
-    return pe + ps, ring
-
-
-@njit(cache=True)
 def pair_degree(pairs, pw, n):
-    deg0 = np.zeros(n)
-    deg1 = np.zeros(n)
+    """Σ of the pair weights at each end (the two bincounts of ``_assemble``, added)."""
+    deg0 = _zeros(n)
+    deg1 = _zeros(n)
+    _pair_degree(pairs, pw, deg0, deg1)
+    deg0 += deg1
+    return deg0
+
+
+@njit(cache=True)
+def _pair_degree(pairs, pw, deg0, deg1):
     for p in range(pw.size):
         deg0[pairs[p, 0]] += pw[p]
         deg1[pairs[p, 1]] += pw[p]
-    return deg0 + deg1
 
 
-@njit(cache=True)
 def pair_pattern(pairs, n):
     """Symmetric CSR pattern of ``pairs`` plus the diagonal, duplicates kept.
 
     Same layout as ``operators._csr_pattern`` on rows = (p0, p1, diag), cols =
     (p1, p0, diag): columns sorted within a row, equal columns in that entry
     order.  Returns indptr, indices (int32) and the positions of every upper
-    entry, lower entry and diagonal entry.
+    entry, lower entry and diagonal entry.  Needs 2P + n < 2**31.
     """
     P = pairs.shape[0]
-    indptr = np.zeros(n + 1, np.int32)
+    nnz = 2 * P + n
+    indptr = _zeros(n + 1, np.int32)
+    indices = np.empty(nnz, np.int32)
+    tag = np.empty(nnz, np.int32)
+    pos_upper = np.empty(P, np.int64)
+    pos_lower = np.empty(P, np.int64)
+    pos_diag = np.empty(n, np.int64)
+    _pair_pattern(pairs, n, indptr, indices, tag, pos_upper, pos_lower, pos_diag, np.empty(n, np.int32))
+    return indptr, indices, pos_upper, pos_lower, pos_diag
+
+
+@njit(cache=True)
+def _pair_pattern(pairs, n, indptr, indices, tag, pos_upper, pos_lower, pos_diag, fill):
+    P = pairs.shape[0]
     for p in range(P):
         indptr[pairs[p, 0] + 1] += 1
         indptr[pairs[p, 1] + 1] += 1
     for i in range(n):
         indptr[i + 1] += indptr[i] + 1
-    nnz = indptr[n]
-    fill = indptr[:-1].copy()
-    indices = np.empty(nnz, np.int32)
-    tag = np.empty(nnz, np.int64)
+    fill[:] = indptr[:-1]
     for p in range(P):
         r = pairs[p, 0]
         q = fill[r]
@@ -348,9 +420,6 @@ def pair_pattern(pairs, n):
         q = fill[i]
         indices[q] = i
         tag[q] = 2 * P + i
-    pos_upper = np.empty(P, np.int64)
-    pos_lower = np.empty(P, np.int64)
-    pos_diag = np.empty(n, np.int64)
     for i in range(n):
         s = indptr[i]
         e = indptr[i + 1]
@@ -372,10 +441,8 @@ def pair_pattern(pairs, n):
                 pos_lower[t - P] = q
             else:
                 pos_diag[t - 2 * P] = q
-    return indptr, indices, pos_upper, pos_lower, pos_diag
 
 
-@njit(cache=True)
 def structure_core(fi, offsets, nxt, prv, corner_edge, edges, tqlbo):
     """Corner weights, chord pairs and skip pairs of ``operators._Structure``.
 
@@ -384,21 +451,21 @@ def structure_core(fi, offsets, nxt, prv, corner_edge, edges, tqlbo):
     skip_pair and pairs = edges followed by the primary chords, in the
     order of the NumPy code.
     """
-    m = offsets.size - 1
-    c = fi.size
+    sizes = np.diff(offsets)
     n_edges = edges.shape[0]
-    n_primary = 0
-    for f in range(m):
-        s = offsets[f + 1] - offsets[f]
-        if s == 4:
-            n_primary += 2
-        elif s > 4:
-            n_primary += s
+    n_primary = 2 * int(np.count_nonzero(sizes == 4)) + int(sizes[sizes > 4].sum())
     pairs = np.empty((n_edges + n_primary, 2), np.int64)
     pairs[:n_edges] = edges
-    corner_w = np.empty(c)
-    corner_aw = np.empty(c)
-    skip_pair = np.empty(c, np.int64)
+    corner_w = np.empty(fi.size)
+    corner_aw = np.empty(fi.size)
+    skip_pair = np.empty(fi.size, np.int64)
+    _structure_core(fi, offsets, nxt, prv, corner_edge, n_edges, tqlbo, pairs, corner_w, corner_aw, skip_pair)
+    return corner_w, corner_aw, skip_pair, pairs
+
+
+@njit(cache=True)
+def _structure_core(fi, offsets, nxt, prv, corner_edge, n_edges, tqlbo, pairs, corner_w, corner_aw, skip_pair):
+    m = offsets.size - 1
     cnt = 0
     for f in range(m):
         o = offsets[f]
@@ -424,7 +491,6 @@ def structure_core(fi, offsets, nxt, prv, corner_edge, edges, tqlbo):
                 pairs[n_edges + cnt, 1] = b if a < b else a
                 skip_pair[k] = n_edges + cnt
                 cnt += 1
-    return corner_w, corner_aw, skip_pair, pairs
 
 
 @njit(parallel=True, cache=True, fastmath=False)

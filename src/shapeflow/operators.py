@@ -393,23 +393,11 @@ class CotanWeights:
         yield self.ring_area
 
 
-def _assemble(mesh, scheme: str, thresholds: str, vertices: np.ndarray | None = None):
-    """Pair weights, degrees, ring areas, locked mask, #degenerate (no matrix)."""
-    if thresholds not in THRESHOLDS:
-        raise ParameterError(f"unknown thresholds {thresholds!r}; choose one of {', '.join(THRESHOLDS)}")
-    st = _structure(mesh, _check_scheme(scheme))
-    V = mesh.vertices if vertices is None else vertices
-    n = mesh.n_vertices
+def _assemble_corners_numpy(V, st, edges, P, n, thresholds):
+    """The corner-triangle part of ``_assemble`` (reference for ``kernels.assemble_corners``)."""
     fi = st.fi
-    K = kernels.get(n)
-    if K is not None:
-        cot_p, cot_c, cot_n, dbl, l_prev, l_next, l_skip = K.corner_cotangents(
-            np.ascontiguousarray(V, dtype=np.float64), fi, st.nxt, st.prv)
-    else:
-        cot_p, cot_c, cot_n, dbl, l_prev, l_next, l_skip = corner_cotangents(V, fi, st.nxt, st.prv)
-    xcot, xdbl, xsq = triangle_cotangents(V, st.extra_tris)
+    cot_p, cot_c, cot_n, dbl, l_prev, l_next, l_skip = corner_cotangents(V, fi, st.nxt, st.prv)
     locked = np.zeros(n, dtype=bool)
-    edges = mesh.topology.edges
     # edge lengths from the corners' half-edges (every edge has at least one corner)
     elen2 = np.empty(edges.shape[0])
     elen2[st.corner_edge] = l_next
@@ -417,34 +405,53 @@ def _assemble(mesh, scheme: str, thresholds: str, vertices: np.ndarray | None = 
         h = float(np.sqrt(elen2).mean()) if elen2.size else 0.0
         short = elen2 <= (REL_EDGE_TOL * h) ** 2
         bad = dbl <= REL_SHAPE_TOL * np.maximum(np.maximum(l_prev, l_next), l_skip)
-        xbad = xdbl <= REL_SHAPE_TOL * xsq.max(axis=1) if xdbl.size else np.zeros(0, bool)
         locked[edges[short].reshape(-1)] = True
         bc = np.flatnonzero(bad)
         locked[fi[bc]] = True
         locked[fi[st.prv[bc]]] = True
         locked[fi[st.nxt[bc]]] = True
-        locked[st.extra_tris[xbad].reshape(-1)] = True
-        n_bad = int(bc.size + xbad.sum())
     else:  # Blender's absolute rules
         locked[edges[elen2 < BLENDER_MIN ** 2].reshape(-1)] = True
         small = 0.5 * dbl < BLENDER_MIN
         locked[fi[small]] = True                      # the corner vertex of a corner triangle
-        xsmall = 0.5 * xdbl < BLENDER_MIN
-        locked[st.extra_tris[xsmall].reshape(-1)] = True
         bad = ~(dbl > FLT_EPSILON)
-        xbad = ~(xdbl > FLT_EPSILON)
-        n_bad = int(bad.sum() + xbad.sum())
     w = np.where(bad, 0.0, st.corner_w)
+    # edge of corner k (curr -> next) gets cot at prev of triangle k and cot at next of triangle next(k)
+    wc_n = w * cot_n
+    h_edge = w * cot_p + wc_n[st.nxt]
+    pw = np.bincount(st.corner_edge, h_edge, minlength=P) + np.bincount(st.skip_pair, w * cot_c, minlength=P)
+    # ring area: each corner triangle's (weighted) area to its three vertices
+    ca = 0.5 * dbl * st.corner_aw
+    ring = np.bincount(fi, ca + ca[st.nxt] + ca[st.prv], minlength=n)
+    return pw, ring, locked, int(bad.sum())
+
+
+def _assemble(mesh, scheme: str, thresholds: str, vertices: np.ndarray | None = None):
+    """Pair weights, degrees, ring areas, locked mask, #degenerate (no matrix)."""
+    if thresholds not in THRESHOLDS:
+        raise ParameterError(f"unknown thresholds {thresholds!r}; choose one of {', '.join(THRESHOLDS)}")
+    st = _structure(mesh, _check_scheme(scheme))
+    V = mesh.vertices if vertices is None else vertices
+    n = mesh.n_vertices
+    edges = mesh.topology.edges
+    xcot, xdbl, xsq = triangle_cotangents(V, st.extra_tris)
     P = st.pairs.shape[0]
+    K = kernels.get(n)
     if K is not None:
-        pw, ring = K.corner_scatter(w, cot_p, cot_c, cot_n, dbl, st.corner_aw, st.nxt, st.prv, fi,
-                                    st.corner_edge, st.skip_pair, P, n)
+        pw, ring, locked, n_bad = K.assemble_corners(
+            np.ascontiguousarray(V, dtype=np.float64), st.fi, st.nxt, st.prv, st.corner_edge, st.skip_pair,
+            st.corner_w, st.corner_aw, edges.shape[0], edges, P, n, thresholds == "blender",
+            REL_EDGE_TOL, REL_SHAPE_TOL, BLENDER_MIN, FLT_EPSILON)
     else:
-        # edge of corner k (curr -> next) gets cot at prev of triangle k and cot at next of triangle next(k)
-        wc_n = w * cot_n
-        h_edge = w * cot_p + wc_n[st.nxt]
-        skip = w * cot_c
-        pw = np.bincount(st.corner_edge, h_edge, minlength=P) + np.bincount(st.skip_pair, skip, minlength=P)
+        pw, ring, locked, n_bad = _assemble_corners_numpy(V, st, edges, P, n, thresholds)
+    # the tqlbo fan triangles of n-gons (few)
+    if thresholds == "relative":
+        xbad = xdbl <= REL_SHAPE_TOL * xsq.max(axis=1) if xdbl.size else np.zeros(0, bool)
+        locked[st.extra_tris[xbad].reshape(-1)] = True
+    else:
+        locked[st.extra_tris[0.5 * xdbl < BLENDER_MIN].reshape(-1)] = True
+        xbad = ~(xdbl > FLT_EPSILON)
+    n_bad = int(n_bad) + int(xbad.sum())
     if st.extra_tris.size:
         xv = (xcot * np.where(xbad, 0.0, st.extra_w)[:, None]).reshape(-1)
         pw += np.bincount(st.extra_pair.reshape(-1), xv, minlength=P)
@@ -452,9 +459,6 @@ def _assemble(mesh, scheme: str, thresholds: str, vertices: np.ndarray | None = 
         deg = K.pair_degree(st.pairs, pw, n)
     else:
         deg = np.bincount(st.pairs[:, 0], pw, minlength=n) + np.bincount(st.pairs[:, 1], pw, minlength=n)
-        # ring area: each corner triangle's (weighted) area to its three vertices
-        ca = 0.5 * dbl * st.corner_aw
-        ring = np.bincount(fi, ca + ca[st.nxt] + ca[st.prv], minlength=n)
     if st.extra_tris.size:
         xa = 0.5 * xdbl * st.extra_w
         ring += np.bincount(st.extra_tris.reshape(-1), np.repeat(xa, 3), minlength=n)
