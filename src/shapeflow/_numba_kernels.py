@@ -260,6 +260,49 @@ def _fill_symmetric(data, pos_diag, diag, pos_upper, pos_lower, off):
         data[pos_lower[p]] = off[p]
 
 
+def interior_data(nnz, pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw):
+    """Matrix data of the interior system (``FlowSolver._interior_system``) in one pass.
+
+    Free rows: c + D on the diagonal, −w_ij where both ends are free; other
+    rows are identity rows.  Returns the data array, the diagonal, the number
+    of pairs with exactly one free end (their terms go to the right-hand
+    side) and max D/c over the free rows with c ≠ 0 (for the κ estimate).
+    """
+    data = np.empty(nnz)
+    diag = np.empty(pos_diag.size)
+    out = _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data, diag)
+    return data, diag, int(out[0]), float(out[1])
+
+
+@njit(cache=True)
+def _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data, diag):
+    ratio = 0.0
+    for i in range(pos_diag.size):
+        if free[i]:
+            d = c[i] + deg[i]
+            if c[i] != 0.0:
+                ratio = max(ratio, abs(deg[i] / c[i]))
+            else:
+                ratio = max(ratio, abs(deg[i]))
+        else:
+            d = 1.0
+        diag[i] = d
+        data[pos_diag[i]] = d
+    n_mixed = 0
+    for p in range(pos_upper.size):
+        fa = free[pairs[p, 0]]
+        fb = free[pairs[p, 1]]
+        v = -pw[p] if (fa and fb) else 0.0
+        if fa != fb:
+            n_mixed += 1
+        data[pos_upper[p]] = v
+        data[pos_lower[p]] = v
+    out = np.empty(2)
+    out[0] = n_mixed
+    out[1] = ratio
+    return out
+
+
 # --------------------------------------------------------------------------
 # assembly (operators.corner_cotangents and the scatters of operators._assemble)
 # --------------------------------------------------------------------------

@@ -53,6 +53,7 @@ from typing import Callable, Sequence
 import numpy as np
 import scipy.sparse as sp
 
+from . import kernels
 from .errors import ParameterError
 from .geometry import signed_volume
 from .mesh import Mesh
@@ -236,6 +237,7 @@ class _System:
         self.c = c
         self.idx = idx
         self.local = local
+        self.held = np.flatnonzero(~free) if idx is None else None   # interior system: rows kept as they are
 
 
 def _row_scale(mass: np.ndarray, lam_abs: float, w: np.ndarray, rows: np.ndarray,
@@ -322,18 +324,30 @@ class FlowSolver:
         if not free.any():
             return None
         c[~free] = 0.0
-        p0, p1 = op.st.pairs[:, 0], op.st.pairs[:, 1]
-        both = free[p0] & free[p1]
-        diag = np.where(free, c + op.deg, 1.0)
-        A = op.st.matrix(diag, np.where(both, -op.pw, 0.0))
+        st = op.st
+        p0, p1 = st.pairs[:, 0], st.pairs[:, 1]
+        K = kernels.get(st.n)
+        if K is not None:   # the same matrix in one compiled pass
+            data, diag, n_mixed, ratio = K.interior_data(st.indices.size, st.pos_diag, st.pos_upper, st.pos_lower,
+                                                         st.pairs, free, c, op.deg, op.pw)
+            A = st.matrix_from_data(data)
+        else:
+            both = free[p0] & free[p1]
+            diag = np.where(free, c + op.deg, 1.0)
+            A = st.matrix(diag, np.where(both, -op.pw, 0.0))
+            n_mixed = -1
+            ratio = float(np.max(np.abs(op.deg[free] / np.where(c[free] != 0, c[free], 1.0))))
         # terms of free rows on non-free columns move to the right-hand side
-        a = free[p0] & ~free[p1]
-        b = free[p1] & ~free[p0]
-        coupling = (np.concatenate([p0[a], p1[b]]), np.concatenate([p1[a], p0[b]]),
-                    np.concatenate([op.pw[a], op.pw[b]]))
-        kappa = 1.0 + 2.0 * float(np.max(np.abs(op.deg[free] / np.where(c[free] != 0, c[free], 1.0))))
+        if n_mixed:
+            a = free[p0] & ~free[p1]
+            b = free[p1] & ~free[p0]
+            coupling = (np.concatenate([p0[a], p1[b]]), np.concatenate([p1[a], p0[b]]),
+                        np.concatenate([op.pw[a], op.pw[b]]))
+        else:
+            coupling = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+        kappa = 1.0 + 2.0 * ratio
         method = "lu" if (self.blender and indefinite.any()) else self._method(int(free.sum()), kappa, n_solves)
-        return _System(A, free, SPDSolver(A, method, rtol=self.rtol), coupling, c)
+        return _System(A, free, SPDSolver(A, method, rtol=self.rtol, diagonal=diag), coupling, c)
 
     def _boundary_system(self, op: _Operator, lam_b: float) -> _System | None:
         if lam_b == 0.0 or op.ub.size == 0:
@@ -387,23 +401,31 @@ class FlowSolver:
         X = self._solve_boundary(V, bsys)
         if isys is not None:
             r, s, e = isys.coupling
-            rhs = np.where(isys.free[:, None], isys.c[:, None] * V, X)
+            held = isys.held
+            rhs = isys.c[:, None] * V          # c = 0 on held rows
+            rhs[held] = X[held]                # identity rows of A
             if r.size:
                 for k in range(3):
                     rhs[:, k] += np.bincount(r, e * X[s, k], minlength=V.shape[0])
             Xi = isys.solver.solve(rhs, X)
             if isys.solver.method == "cg":
                 report.cg_iterations.append(isys.solver.stats.iterations)
-            X[isys.free] = Xi[isys.free]
+            Xi[held] = X[held]                 # exactly, not to the solver's tolerance
+            X = Xi
         if not np.all(np.isfinite(X)):
             bad = ~np.isfinite(X).all(axis=1)
             X[bad] = V[bad]
             report.notes.append(f"{int(bad.sum())} vertices with a non-finite solution kept in place")
-        sign = np.where(boundary, 1.0 if lam_b >= 0 else -1.0, 1.0 if lam >= 0 else -1.0)
-        out = V.copy()
-        d = (X - V) * sign[:, None]
-        out[:, axes] += d[:, axes]
-        return out
+        # V + sign (X - V), per vertex sign (boundary vertices follow λ_b), on the chosen axes
+        s_in, s_b = (1.0 if lam >= 0 else -1.0), (1.0 if lam_b >= 0 else -1.0)
+        d = np.subtract(X, V, out=X)
+        if s_in != s_b and boundary.any():
+            d *= np.where(boundary, s_b, s_in)[:, None]
+        elif s_in < 0:
+            np.negative(d, out=d)
+        if not axes.all():
+            d[:, ~axes] = 0.0
+        return np.add(V, d, out=d)
 
     def _fixed_steps(self, V: np.ndarray, lam: float, k: int, isys: _System, axes: np.ndarray,
                      report: FlowReport) -> np.ndarray | None:
@@ -535,7 +557,7 @@ class FlowSolver:
             inc = int(topo.inconsistent_edge_mask.sum())
             if inc:
                 report.notes.append(f"{inc} edges with inconsistent face orientation: the volume being preserved is ill-defined")
-        center0 = V0.mean(axis=0)
+        center0 = V0.mean(axis=0) if preserve_volume else None
         n_solves = iterations if update == "fixed" else 1
         V = np.array(V0)
         for it in range(int(iterations)):
@@ -571,7 +593,7 @@ class FlowSolver:
     def _result(self, V: np.ndarray, report: FlowReport, t0: float) -> Mesh:
         out = self.mesh.with_vertices(V) if V is not self.mesh.vertices else self.mesh.with_vertices(self.mesh.vertices)
         d = V - self.mesh.vertices
-        report.max_displacement = float(np.sqrt((d * d).sum(axis=1)).max()) if V.size else 0.0
+        report.max_displacement = float(np.sqrt(np.einsum("ij,ij->i", d, d).max())) if V.size else 0.0
         report.seconds = time.perf_counter() - t0
         out.report = report
         return out

@@ -271,6 +271,10 @@ class _Structure:
             data[self.pos_diag] = diag
             data[self.pos_upper] = off
             data[self.pos_lower] = off
+        return self.matrix_from_data(data, copy_pattern=copy_pattern)
+
+    def matrix_from_data(self, data: np.ndarray, *, copy_pattern: bool = False) -> sp.csr_matrix:
+        """The CSR matrix with this pattern and the given ``data`` (one value per stored entry)."""
         idx, ptr = (self.indices.copy(), self.indptr.copy()) if copy_pattern else (self.indices, self.indptr)
         M = sp.csr_matrix((data, idx, ptr), shape=(self.n, self.n), copy=False)
         M.has_sorted_indices = True

@@ -82,11 +82,13 @@ class SPDSolver:
     """Solve ``A X = B`` repeatedly for one symmetric matrix ``A``.
 
     The factorisation (direct methods) is computed on the first solve and
-    reused; CG keeps its preconditioner.
+    reused; CG keeps its preconditioner.  ``diagonal``, when the caller
+    already has it, saves extracting A's diagonal for the Jacobi
+    preconditioner (it must equal ``A.diagonal()``).
     """
 
     def __init__(self, A: sp.csr_matrix, method: str = "cg", *, rtol: float = DEFAULT_RTOL,
-                 maxiter: int | None = None):
+                 maxiter: int | None = None, diagonal: np.ndarray | None = None):
         if method not in METHODS or method == "auto":
             raise ParameterError(f"unknown solver {method!r}; choose one of {', '.join(METHODS)}")
         if method == "cholesky" and not cholesky_available():
@@ -97,7 +99,7 @@ class SPDSolver:
         self.maxiter = maxiter
         self.stats = SolveStats(method)
         self._factor = None
-        d = A.diagonal()
+        d = A.diagonal() if diagonal is None else np.asarray(diagonal, dtype=np.float64)
         self._minv = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 1.0)
 
     def solve(self, B: np.ndarray, X0: np.ndarray | None = None) -> np.ndarray:
@@ -194,16 +196,20 @@ class SPDSolver:
         A = self.A
         n = A.shape[0]
         k = 1 if squeeze else B.shape[1]
-        B3 = np.zeros((n, 3))
-        B3[:, :k] = B.reshape(n, k)
-        X = np.zeros((n, 3))
-        if X0 is not None:
-            X[:, :k] = np.asarray(X0, dtype=np.float64).reshape(n, k)
+        if k == 3:   # B is C-contiguous float64 (solve() made it so); the kernel only reads it
+            B3 = B
+            X = np.array(X0, dtype=np.float64, order="C") if X0 is not None else np.zeros((n, 3))
+        else:
+            B3 = np.zeros((n, 3))
+            B3[:, :k] = B.reshape(n, k)
+            X = np.zeros((n, 3))
+            if X0 is not None:
+                X[:, :k] = np.asarray(X0, dtype=np.float64).reshape(n, k)
         data = np.ascontiguousarray(A.data, dtype=np.float64)
         self.stats.iterations = int(K.pcg3(A.indptr, A.indices, data, self._minv, B3, X, self.rtol,
                                            self._maxiter(n)))
         _check_finite(X)
-        return X[:, 0].copy() if squeeze else X[:, :k].copy()
+        return X[:, 0].copy() if squeeze else (X if k == 3 else X[:, :k].copy())
 
 
 def _check_finite(X: np.ndarray) -> None:
