@@ -156,12 +156,13 @@ def _pcg3(indptr, indices, data, minv, B, X, rtol, maxiter, P, AP, R):
 # topology: unique edges (Topology._edge_data)
 # --------------------------------------------------------------------------
 
-def edge_data(fi, nxt, n):
+def edge_data(fi, offsets, n):
     """Same outputs as the NumPy ``Topology._edge_data``.
 
     Half-edges are bucketed by their low vertex (counting sort, stable in
     corner order), then each small bucket is insertion-sorted by the high
     vertex (stable), which is the order of a stable argsort of lo·n + hi.
+    Walks the faces (``offsets``), so the corner_next array is not needed.
     """
     c = fi.size
     vt = np.int32 if n < 2**31 - 1 else np.int64
@@ -170,7 +171,8 @@ def edge_data(fi, nxt, n):
     order = np.empty(c, np.int64)
     corner_edge = np.empty(c, np.int64)
     starts = np.empty(c + 1, np.int64)
-    n_e = _edge_data(fi, nxt, n, lo, hi, order, corner_edge, starts, _zeros(n + 1, np.int64), np.empty(n, np.int64))
+    n_e = _edge_data(fi, offsets, n, lo, hi, order, corner_edge, starts, _zeros(n + 1, np.int64),
+                     np.empty(n, np.int64))
     firsts = order[starts[:n_e]]
     edges = np.empty((n_e, 2), np.int64)
     edges[:, 0] = lo[firsts]
@@ -179,18 +181,21 @@ def edge_data(fi, nxt, n):
 
 
 @njit(cache=True)
-def _edge_data(fi, nxt, n, lo, hi, order, corner_edge, starts, start, fill):
+def _edge_data(fi, offsets, n, lo, hi, order, corner_edge, starts, start, fill):
     c = fi.size
-    for k in range(c):
-        a = fi[k]
-        b = fi[nxt[k]]
-        if a < b:
-            lo[k] = a
-            hi[k] = b
-        else:
-            lo[k] = b
-            hi[k] = a
-        start[lo[k] + 1] += 1
+    for f in range(offsets.size - 1):
+        o = offsets[f]
+        e = offsets[f + 1]
+        for k in range(o, e):
+            a = fi[k]
+            b = fi[k + 1] if k + 1 < e else fi[o]
+            if a < b:
+                lo[k] = a
+                hi[k] = b
+            else:
+                lo[k] = b
+                hi[k] = a
+            start[lo[k] + 1] += 1
     for v in range(n):
         start[v + 1] += start[v]
     fill[:] = start[:-1]
@@ -307,7 +312,7 @@ def _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data
 # assembly (operators.corner_cotangents and the scatters of operators._assemble)
 # --------------------------------------------------------------------------
 
-def assemble_corners(V, fi, nxt, prv, corner_edge, skip_pair, corner_w, corner_aw, n_edges, edges,
+def assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, n_edges, edges,
                      P, n, blender_rules, rel_edge_tol, rel_shape_tol, blender_min, flt_eps):
     """``operators._assemble`` for the corner triangles in two passes, no per-corner temporaries.
 
@@ -321,26 +326,29 @@ def assemble_corners(V, fi, nxt, prv, corner_edge, skip_pair, corner_w, corner_a
     locked = _zeros(n, np.bool_)
     pw = _zeros(P)
     ring = _zeros(n)
-    n_bad = _assemble_corners(V, fi, nxt, prv, corner_edge, skip_pair, corner_w, corner_aw, edges,
+    n_bad = _assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
                               blender_rules, rel_edge_tol, rel_shape_tol, blender_min, flt_eps,
                               elen2, locked, pw, ring)
     return pw, ring, locked, int(n_bad)
 
 
 @njit(cache=True)
-def _assemble_corners(V, fi, nxt, prv, corner_edge, skip_pair, corner_w, corner_aw, edges,
+def _assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
                       blender_rules, rel_edge_tol, rel_shape_tol, blender_min, flt_eps,
                       elen2, locked, pw, ring):
-    c = fi.size
+    m = offsets.size - 1
     n_edges = elen2.size
     # pass 1: squared edge lengths, from each corner's half-edge curr -> next
-    for k in range(c):
-        a = fi[k]
-        b = fi[nxt[k]]
-        dx = V[b, 0] - V[a, 0]
-        dy = V[b, 1] - V[a, 1]
-        dz = V[b, 2] - V[a, 2]
-        elen2[corner_edge[k]] = dx * dx + dy * dy + dz * dz
+    for f in range(m):
+        o = offsets[f]
+        e = offsets[f + 1]
+        for k in range(o, e):
+            a = fi[k]
+            b = fi[k + 1] if k + 1 < e else fi[o]
+            dx = V[b, 0] - V[a, 0]
+            dy = V[b, 1] - V[a, 1]
+            dz = V[b, 2] - V[a, 2]
+            elen2[corner_edge[k]] = dx * dx + dy * dy + dz * dz
     if blender_rules:
         thr = blender_min * blender_min
         for e in range(n_edges):
@@ -357,48 +365,58 @@ def _assemble_corners(V, fi, nxt, prv, corner_edge, skip_pair, corner_w, corner_
             if elen2[e] <= thr:
                 locked[edges[e, 0]] = True
                 locked[edges[e, 1]] = True
-    # pass 2: per corner triangle (prev, curr, next)
+    # pass 2: per corner triangle (prev, curr, next), face by face (weights by face size)
     n_bad = 0
-    for k in range(c):
-        ia = fi[prv[k]]
-        ib = fi[k]
-        ic = fi[nxt[k]]
-        px = V[ib, 0] - V[ia, 0]
-        py = V[ib, 1] - V[ia, 1]
-        pz = V[ib, 2] - V[ia, 2]
-        qx = V[ic, 0] - V[ib, 0]
-        qy = V[ic, 1] - V[ib, 1]
-        qz = V[ic, 2] - V[ib, 2]
-        ln = qx * qx + qy * qy + qz * qz
-        lp = px * px + py * py + pz * pz
-        dot = -(px * qx + py * qy + pz * qz)
-        cx = py * qz - pz * qy
-        cy = pz * qx - px * qz
-        cz = px * qy - py * qx
-        d = np.sqrt(cx * cx + cy * cy + cz * cz)
-        if blender_rules:
-            if 0.5 * d < blender_min:
-                locked[ib] = True
-            bad = not (d > flt_eps)
+    for f in range(m):
+        o = offsets[f]
+        sz = offsets[f + 1] - o
+        if tqlbo:
+            wf = 1.0 / 3.0 if sz == 3 else 2.0 / sz
+            awf = wf
         else:
-            ls = lp + ln - 2.0 * dot
-            bad = d <= rel_shape_tol * max(max(lp, ln), ls)
+            wf = 0.5
+            awf = 1.0
+        for j in range(sz):
+            k = o + j
+            kp = o + (j + sz - 1) % sz
+            ia = fi[kp]
+            ib = fi[k]
+            ic = fi[o + (j + 1) % sz]
+            px = V[ib, 0] - V[ia, 0]
+            py = V[ib, 1] - V[ia, 1]
+            pz = V[ib, 2] - V[ia, 2]
+            qx = V[ic, 0] - V[ib, 0]
+            qy = V[ic, 1] - V[ib, 1]
+            qz = V[ic, 2] - V[ib, 2]
+            ln = qx * qx + qy * qy + qz * qz
+            lp = px * px + py * py + pz * pz
+            dot = -(px * qx + py * qy + pz * qz)
+            cx = py * qz - pz * qy
+            cy = pz * qx - px * qz
+            cz = px * qy - py * qx
+            d = np.sqrt(cx * cx + cy * cy + cz * cz)
+            if blender_rules:
+                if 0.5 * d < blender_min:
+                    locked[ib] = True
+                bad = not (d > flt_eps)
+            else:
+                ls = lp + ln - 2.0 * dot
+                bad = d <= rel_shape_tol * max(max(lp, ln), ls)
+                if bad:
+                    locked[ia] = True
+                    locked[ib] = True
+                    locked[ic] = True
+            ca = 0.5 * d * awf
+            ring[ia] += ca
+            ring[ib] += ca
+            ring[ic] += ca
             if bad:
-                locked[ia] = True
-                locked[ib] = True
-                locked[ic] = True
-        ca = 0.5 * d * corner_aw[k]
-        ring[ia] += ca
-        ring[ib] += ca
-        ring[ic] += ca
-        if bad:
-            n_bad += 1
-            continue
-        inv = 1.0 / d if d > 0.0 else 0.0
-        w = corner_w[k]
-        pw[corner_edge[k]] += w * ((lp - dot) * inv)        # angle at prev, opposite curr-next
-        pw[corner_edge[prv[k]]] += w * ((ln - dot) * inv)   # angle at next, opposite prev-curr
-        pw[skip_pair[k]] += w * (dot * inv)                 # angle at curr, opposite prev-next
+                n_bad += 1
+                continue
+            inv = 1.0 / d if d > 0.0 else 0.0
+            pw[corner_edge[k]] += wf * ((lp - dot) * inv)     # angle at prev, opposite curr-next
+            pw[corner_edge[kp]] += wf * ((ln - dot) * inv)    # angle at next, opposite prev-curr
+            pw[skip_pair[k]] += wf * (dot * inv)              # angle at curr, opposite prev-next
     return n_bad
 
 
@@ -431,9 +449,9 @@ def pair_pattern(pairs, n):
     indptr = _zeros(n + 1, np.int32)
     indices = np.empty(nnz, np.int32)
     tag = np.empty(nnz, np.int32)
-    pos_upper = np.empty(P, np.int64)
-    pos_lower = np.empty(P, np.int64)
-    pos_diag = np.empty(n, np.int64)
+    pos_upper = np.empty(P, np.int32)
+    pos_lower = np.empty(P, np.int32)
+    pos_diag = np.empty(n, np.int32)
     _pair_pattern(pairs, n, indptr, indices, tag, pos_upper, pos_lower, pos_diag, np.empty(n, np.int32))
     return indptr, indices, pos_upper, pos_lower, pos_diag
 
@@ -486,50 +504,42 @@ def _pair_pattern(pairs, n, indptr, indices, tag, pos_upper, pos_lower, pos_diag
                 pos_diag[t - 2 * P] = q
 
 
-def structure_core(fi, offsets, nxt, prv, corner_edge, edges, tqlbo):
-    """Corner weights, chord pairs and skip pairs of ``operators._Structure``.
+def structure_core(fi, offsets, corner_edge, edges):
+    """Chord pairs and skip pairs of ``operators._Structure``.
 
     For meshes without tqlbo fan triangles (triangles and quads, or any
-    polygon with the Blender scheme).  Returns corner_w, corner_aw,
-    skip_pair and pairs = edges followed by the primary chords, in the
-    order of the NumPy code.
+    polygon with the Blender scheme).  Returns skip_pair (int32 when the
+    pairs allow) and pairs = edges followed by the primary chords, in the
+    order of the NumPy code.  (The corner weights depend on the face size
+    only; ``assemble_corners`` computes them on the fly.)
     """
     sizes = np.diff(offsets)
     n_edges = edges.shape[0]
     n_primary = 2 * int(np.count_nonzero(sizes == 4)) + int(sizes[sizes > 4].sum())
-    pairs = np.empty((n_edges + n_primary, 2), np.int64)
+    P = n_edges + n_primary
+    pairs = np.empty((P, 2), np.int64)
     pairs[:n_edges] = edges
-    corner_w = np.empty(fi.size)
-    corner_aw = np.empty(fi.size)
-    skip_pair = np.empty(fi.size, np.int64)
-    _structure_core(fi, offsets, nxt, prv, corner_edge, n_edges, tqlbo, pairs, corner_w, corner_aw, skip_pair)
-    return corner_w, corner_aw, skip_pair, pairs
+    skip_pair = np.empty(fi.size, np.int32 if P < 2**31 - 1 else np.int64)
+    _structure_core(fi, offsets, corner_edge, n_edges, pairs, skip_pair)
+    return skip_pair, pairs
 
 
 @njit(cache=True)
-def _structure_core(fi, offsets, nxt, prv, corner_edge, n_edges, tqlbo, pairs, corner_w, corner_aw, skip_pair):
+def _structure_core(fi, offsets, corner_edge, n_edges, pairs, skip_pair):
     m = offsets.size - 1
     cnt = 0
     for f in range(m):
         o = offsets[f]
         s = offsets[f + 1] - o
-        if tqlbo:
-            wv = 1.0 / 3.0 if s == 3 else 2.0 / s
-            aw = wv
-        else:
-            wv = 0.5
-            aw = 1.0
         for j in range(s):
             k = o + j
-            corner_w[k] = wv
-            corner_aw[k] = aw
             if s == 3:
-                skip_pair[k] = corner_edge[nxt[k]]
+                skip_pair[k] = corner_edge[o + (j + 1) % 3]
             elif s == 4 and j >= 2:
                 skip_pair[k] = skip_pair[k - 2]
             else:
-                a = fi[prv[k]]
-                b = fi[nxt[k]]
+                a = fi[o + (j + s - 1) % s]
+                b = fi[o + (j + 1) % s]
                 pairs[n_edges + cnt, 0] = a if a < b else b
                 pairs[n_edges + cnt, 1] = b if a < b else a
                 skip_pair[k] = n_edges + cnt

@@ -231,7 +231,7 @@ class Topology:
         fi = self.face_indices
         K = kernels.get(self.n_vertices)
         if K is not None:
-            return K.edge_data(fi, self.corner_next, self.n_vertices)
+            return K.edge_data(fi, self.face_offsets, self.n_vertices)
         a = fi
         b = fi[self.corner_next]
         lo = np.minimum(a, b)

@@ -141,26 +141,25 @@ class _Structure:
         sizes = topo.face_sizes
         offs = topo.face_offsets
         fi = topo.face_indices
-        nxt = topo.corner_next
-        prv = topo.corner_prev
         corner_edge = topo.corner_edge
         edges = topo.edges
+        self._topo = topo
+        self.scheme = scheme
+        self._corner_w = None
         K = kernels.get(n)
         if K is not None and (scheme == "blender" or sizes.size == 0 or int(sizes.max()) <= 4):
-            # no fan triangles: the compiled twin of the code below
-            self.corner_w, self.corner_aw, self.skip_pair, pairs = K.structure_core(
-                fi, offs, nxt, prv, corner_edge, edges, scheme == "tqlbo")
+            # no fan triangles: the compiled twin of the code below (corner weights made on demand)
+            self.skip_pair, pairs = K.structure_core(fi, offs, corner_edge, edges)
             self.extra_tris = np.zeros((0, 3), np.int64)
             self.extra_w = np.zeros(0)
             self.extra_face = np.zeros(0, np.int64)
             self.extra_pair = np.zeros((0, 3), np.int64)
         else:
-            pairs = self._numpy_core(scheme, n, sizes, offs, fi, nxt, prv, corner_edge, edges)
+            pairs = self._numpy_core(scheme, n, sizes, offs, fi, topo.corner_next, topo.corner_prev,
+                                     corner_edge, edges)
         self.pairs = pairs
         self.n = n
         self.corner_edge = corner_edge
-        self.nxt = nxt
-        self.prv = prv
         self.fi = fi
         # --- symmetric CSR pattern with diagonal (duplicates kept, columns sorted)
         P = pairs.shape[0]
@@ -182,12 +181,36 @@ class _Structure:
         self.indptr = indptr
         self.indices = indices
 
+    @property
+    def nxt(self) -> np.ndarray:
+        """Next corner of each corner (the topology's ``corner_next``)."""
+        return self._topo.corner_next
+
+    @property
+    def prv(self) -> np.ndarray:
+        """Previous corner of each corner (the topology's ``corner_prev``)."""
+        return self._topo.corner_prev
+
+    @property
+    def corner_w(self) -> np.ndarray:
+        """Cotangent weight of each corner triangle (depends on the face size only)."""
+        if self._corner_w is None:
+            sizes = self._topo.face_sizes
+            self._corner_w = corner_weights(np.repeat(sizes, sizes), self.scheme)
+        return self._corner_w[0]
+
+    @property
+    def corner_aw(self) -> np.ndarray:
+        """Area weight of each corner triangle."""
+        self.corner_w  # noqa: B018 - fills the cache
+        return self._corner_w[1]
+
     def _numpy_core(self, scheme, n, sizes, offs, fi, nxt, prv, corner_edge, edges) -> np.ndarray:
         """Corner weights, chords, skip pairs and n-gon fan triangles; returns the pairs."""
         n_edges = edges.shape[0]
         c = fi.size
         cs = np.repeat(sizes, sizes)
-        self.corner_w, self.corner_aw = corner_weights(cs, scheme)
+        self._corner_w = corner_weights(cs, scheme)
         is_tri = cs == 3
         # --- chords: the skip pair (prev, next) of corners of faces with >= 4 corners
         local = np.arange(c) - np.repeat(offs[:-1], sizes)
@@ -443,8 +466,8 @@ def _assemble(mesh, scheme: str, thresholds: str, vertices: np.ndarray | None = 
     K = kernels.get(n)
     if K is not None:
         pw, ring, locked, n_bad = K.assemble_corners(
-            np.ascontiguousarray(V, dtype=np.float64), st.fi, st.nxt, st.prv, st.corner_edge, st.skip_pair,
-            st.corner_w, st.corner_aw, edges.shape[0], edges, P, n, thresholds == "blender",
+            np.ascontiguousarray(V, dtype=np.float64), st.fi, mesh.topology.face_offsets, st.corner_edge,
+            st.skip_pair, st.scheme == "tqlbo", edges.shape[0], edges, P, n, thresholds == "blender",
             REL_EDGE_TOL, REL_SHAPE_TOL, BLENDER_MIN, FLT_EPSILON)
     else:
         pw, ring, locked, n_bad = _assemble_corners_numpy(V, st, edges, P, n, thresholds)
