@@ -309,14 +309,40 @@ def test_initial_pair_weights_match_operator(scheme):
         assert np.array_equal(b.locked, locked)
 
 
-def test_caches_follow_the_sculpted_mesh():
+@pytest.mark.parametrize("compiled", [False, True])
+def test_caches_follow_the_sculpted_mesh(compiled):
+    if compiled and not sf.kernels.available():
+        pytest.skip("numba (the 'fast' extra) not installed")
     mesh = cube_sphere(9, mix=0.3, seed=8)
-    b = sf.Brush(mesh, lam=-60.0, radius=0.7)
-    rng = np.random.default_rng(3)
-    b.stroke(mesh.vertices[rng.choice(mesh.n_vertices, 5)], spacing=0.3)
+    with sf.kernels.enabled(compiled):
+        b = sf.Brush(mesh, lam=-60.0, radius=0.7)
+        rng = np.random.default_rng(3)
+        b.stroke(mesh.vertices[rng.choice(mesh.n_vertices, 5)], spacing=0.3)
     pw, locked = _pair_weights(b.mesh)
     assert np.abs(_brush_pw(b) - pw).max() <= 1e-12 * np.abs(pw).max()
     assert np.array_equal(b.locked, locked)
+
+
+@pytest.mark.skipif(not sf.kernels.available(), reason="numba (the 'fast' extra) not installed")
+def test_compiled_cache_update_matches_numpy():
+    """Dabs next to a zero-length edge, an undo: locks, lock counts and weights agree on both paths."""
+    mesh = _bumpy_grid(12)
+    V = mesh.vertices.copy()
+    V[40] = V[41]                      # a zero-length edge: its ends and triangles are locked
+    mesh = mesh.with_vertices(V)
+    runs = []
+    for compiled in (False, True):
+        with sf.kernels.enabled(compiled):
+            b = sf.Brush(mesh, lam=-40.0, radius=2.5)
+            b.dab(V[40])
+            b.dab(V[60])
+            b.undo()                   # restores positions: triangles flip back
+            b.dab(V[45] + 0.3)
+            runs.append((b.vertices.copy(), _brush_pw(b), b.locked.copy(), b._tbad.copy(), b._vlock.copy()))
+    (v0, pw0, l0, tb0, vl0), (v1, pw1, l1, tb1, vl1) = runs
+    assert l0.any() and np.array_equal(l0, l1) and np.array_equal(tb0, tb1) and np.array_equal(vl0, vl1)
+    assert np.abs(pw0 - pw1).max() <= 1e-13 * np.abs(pw0).max()
+    assert np.abs(v0 - v1).max() <= 1e-12 * np.ptp(V)
 
 
 # --- strokes ----------------------------------------------------------------------------------

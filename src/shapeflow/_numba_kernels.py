@@ -600,3 +600,86 @@ def chebyshev_step(indptr, indices, data, cinv, Zcur, Zprev, Y, X0, cw, alpha, b
     out[1] = s1
     out[2] = s2
     return out
+
+
+# --------------------------------------------------------------------------
+# brush: the cache update after a dab (brush.Brush._update_triangles)
+# --------------------------------------------------------------------------
+
+@njit(cache=True)
+def brush_update_triangles(tris, tv, tp, tw, taw, VT, tval, tarea, update_area, tbad, vlock, pw,
+                           ttri, pshort, short2, shape_tol, flips):
+    """Recompute triangles ``tris`` of the brush cache in one pass.
+
+    Same formulas and order of operations per triangle as ``brush._tri_geometry``
+    and the incremental branch of ``Brush._update_triangles``: pair weights
+    change by (new − old), lock counts by degenerate flips.  Pairs whose
+    "short edge" state may have flipped are written to ``flips``; returns
+    their number (the caller re-checks them).
+    """
+    nf = 0
+    for q in range(tris.size):
+        t = tris[q]
+        a = tv[0, t]
+        b = tv[1, t]
+        d = tv[2, t]
+        ax = VT[0, a]
+        ay = VT[1, a]
+        az = VT[2, a]
+        bx = VT[0, b]
+        by = VT[1, b]
+        bz = VT[2, b]
+        dx = VT[0, d]
+        dy = VT[1, d]
+        dz = VT[2, d]
+        ex = dx - bx
+        ey = dy - by
+        ez = dz - bz
+        px = bx - ax
+        py = by - ay
+        pz = bz - az
+        sx = dx - ax
+        sy = dy - ay
+        sz = dz - az
+        sq0 = ex * ex + ey * ey + ez * ez
+        sq1 = sx * sx + sy * sy + sz * sz
+        sq2 = px * px + py * py + pz * pz
+        dot = -(px * ex + py * ey + pz * ez)
+        cx = py * ez - pz * ey
+        cy = pz * ex - px * ez
+        cz = px * ey - py * ex
+        dbl = np.sqrt(cx * cx + cy * cy + cz * cz)
+        inv = 1.0 / dbl if dbl > 0 else 0.0
+        bad = dbl <= shape_tol * max(max(sq0, sq1), sq2)
+        w = 0.0 if bad else tw[t]
+        if update_area:
+            tarea[t] = 0.5 * dbl * taw[t]
+        new0 = ((sq2 - dot) * inv) * w
+        new1 = (dot * inv) * w
+        new2 = ((sq0 - dot) * inv) * w
+        pw[tp[0, t]] += new0 - tval[0, t]
+        pw[tp[1, t]] += new1 - tval[1, t]
+        pw[tp[2, t]] += new2 - tval[2, t]
+        tval[0, t] = new0
+        tval[1, t] = new1
+        tval[2, t] = new2
+        if tbad[t] != bad:
+            delta = 1 if bad else -1
+            vlock[a] += delta
+            vlock[b] += delta
+            vlock[d] += delta
+            tbad[t] = bad
+        e = tp[0, t]
+        if (sq0 <= short2) != pshort[e]:
+            flips[nf] = e
+            nf += 1
+        if ttri[t]:
+            e = tp[1, t]
+            if (sq1 <= short2) != pshort[e]:
+                flips[nf] = e
+                nf += 1
+            e = tp[2, t]
+            if (sq2 <= short2) != pshort[e]:
+                flips[nf] = e
+                nf += 1
+    return nf

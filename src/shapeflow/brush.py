@@ -76,6 +76,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from . import kernels
 from .errors import ParameterError
 from .flow import resolve_weights
 from .mesh import Mesh
@@ -920,6 +921,15 @@ class Brush(_BrushBase):
         by counting flips.
         """
         tv, tp, tval = self._tv, self._tp, self._tval
+        K = None if initial else kernels.get(self._n, min_size=0)
+        if K is not None:   # the branch below in one compiled pass
+            flips = np.empty(3 * tris.size, self._tp.dtype)
+            nf = K.brush_update_triangles(tris, tv, tp, self._tw, self._taw, self._VT, tval, self._tarea,
+                                          not self.normalized, self._tbad, self._vlock, self._pw, self._ttri,
+                                          self._pshort, self._short2, REL_SHAPE_TOL, flips)
+            if nf:
+                self._flip_short(np.unique(flips[:nf]))
+            return
         tvs = (tv[0].take(tris, mode="clip"), tv[1].take(tris, mode="clip"), tv[2].take(tris, mode="clip"))
         cot, dbl, sq = _tri_geometry(self._VT, tvs)
         bad = dbl <= REL_SHAPE_TOL * np.maximum(np.maximum(sq[0], sq[1]), sq[2])
