@@ -683,3 +683,30 @@ def brush_update_triangles(tris, tv, tp, tw, taw, VT, tval, tarea, update_area, 
                 flips[nf] = e
                 nf += 1
     return nf
+
+
+@njit(cache=True)
+def brush_moved_triangles(idx, vf_ptr, vf_face, ft_ptr, fmark, out):
+    """Triangles of the faces touching vertices ``idx``, each once (``Brush._moved``).
+
+    ``fmark`` (one bool per face, all False) is scratch, left all False;
+    ``out`` must hold every triangle found.  Returns their number.
+    """
+    nt = 0
+    nf = 0
+    for q in range(idx.size):
+        v = idx[q]
+        for e in range(vf_ptr[v], vf_ptr[v + 1]):
+            f = vf_face[e]
+            if not fmark[f]:
+                fmark[f] = True
+                for t in range(ft_ptr[f], ft_ptr[f + 1]):
+                    out[nt] = t
+                    nt += 1
+                nf += 1
+    # clear the marks
+    for q in range(idx.size):
+        v = idx[q]
+        for e in range(vf_ptr[v], vf_ptr[v + 1]):
+            fmark[vf_face[e]] = False
+    return nt
