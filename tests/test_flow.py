@@ -377,3 +377,31 @@ def test_chebyshev_coefficients_bound_the_error():
         err = np.abs(chebyshev.chebval(x, c[:m + 1]) - f(5.0 + 4.0 * x)).max()
         assert err <= tail[m] * (1 + 1e-9) + 1e-13
     assert tail[-1] == 0.0
+
+
+def test_chebyshev_steps_degree_checked_against_the_displacement():
+    """A displacement estimate far too large picks too low a degree: the check catches it and
+    the sum is redone; both agree with the dense reference f(C⁻¹A) applied exactly."""
+    import scipy.sparse as sp
+    from shapeflow.solvers import chebyshev_coefficients, chebyshev_steps
+
+    m = cube_sphere(5, seed=2)
+    W = sf.cotan_weights(m).W
+    d = np.asarray(W.sum(axis=1)).ravel()
+    c = d / 0.7                                      # C = D/λ, λ = 0.7
+    A = (sp.diags(c + d) - W).tocsr()
+    X0 = m.vertices.copy()
+    G = np.zeros_like(X0)
+    Ad = A.toarray()
+    b = float(np.max(np.abs(Ad).sum(axis=1) / c))    # Gershgorin bound of C⁻¹A
+    k = 4
+    fu = lambda t: (1.0 / t) ** k                    # noqa: E731
+    cu = chebyshev_coefficients(fu, 1.0, b)
+    ch = chebyshev_coefficients(lambda t: 0.0 * t, 1.0, b)
+    Mi = np.linalg.solve(Ad, np.diag(c))             # one step: x <- A⁻¹ C x
+    ref = np.linalg.matrix_power(Mi, k) @ X0
+    disp = np.abs(ref - X0).max()
+    for steps in (k, 10**12):                        # 10**12: the estimate is far too large
+        Y, deg = chebyshev_steps(A, c, X0, G, 1.0, b, cu, ch, 1e-10, 200, steps=steps)
+        assert Y is not None and deg >= 3
+        assert np.abs(Y - ref).max() < 1e-8 * disp

@@ -116,6 +116,18 @@ def test_flow_same_result(name, mesh, lam, forced):
     assert fast.report.cg_iterations == pytest.approx(slow.report.cg_iterations, abs=1)
 
 
+@pytest.mark.parametrize("lam", [2.0, -3.0])
+def test_fixed_steps_same_result(lam, forced):
+    """The compiled Clenshaw step against the NumPy one (open mesh: held rim, coupling term)."""
+    mesh = meshgen.grid(12, 10, jitter=0.2, seed=9, mix=0.3, z=lambda x, y: 0.2 * np.sin(x) * np.cos(y))
+    fast = sf.flow(_fresh(mesh), lam, iterations=6, solver="chebyshev")
+    with kernels.enabled(False):
+        slow = sf.flow(_fresh(mesh), lam, iterations=6, solver="chebyshev")
+    assert fast.report.solver == slow.report.solver == "chebyshev"
+    disp = np.abs(slow.vertices - mesh.vertices).max()
+    assert disp > 0 and np.abs(fast.vertices - slow.vertices).max() < 1e-10 * disp
+
+
 def test_cg_kernel_columns(forced):
     """1, 2 and 3 columns; zero columns stay zero; same answer as the NumPy CG."""
     from shapeflow.solvers import SPDSolver

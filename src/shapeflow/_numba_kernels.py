@@ -547,59 +547,23 @@ def _structure_core(fi, offsets, corner_edge, n_edges, pairs, skip_pair):
 
 
 @njit(parallel=True, cache=True, fastmath=False)
-def chebyshev_step(indptr, indices, data, cinv, Zcur, Zprev, Y, X0, cw, alpha, beta, cu, ch):
-    """One degree of ``solvers.chebyshev_steps`` (see there), fused; returns Σ cw·(Y − X0)² per column."""
+def clenshaw_step(indptr, indices, data, cinv, B1, B2, X0, H0, f, alpha, beta, cu, ch):
+    """One step of ``solvers.chebyshev_steps``: B2 <- f·Ã B1 − B2 + cu X0 + ch H0 (in place), fused."""
     n = indptr.size - 1
-    s0 = 0.0
-    s1 = 0.0
-    s2 = 0.0
     for i in prange(n):
         a0 = 0.0
         a1 = 0.0
         a2 = 0.0
-        a3 = 0.0
-        a4 = 0.0
-        a5 = 0.0
         for q in range(indptr[i], indptr[i + 1]):
             j = indices[q]
             v = data[q]
-            a0 += v * Zcur[j, 0]
-            a1 += v * Zcur[j, 1]
-            a2 += v * Zcur[j, 2]
-            a3 += v * Zcur[j, 3]
-            a4 += v * Zcur[j, 4]
-            a5 += v * Zcur[j, 5]
+            a0 += v * B1[j, 0]
+            a1 += v * B1[j, 1]
+            a2 += v * B1[j, 2]
         ci = cinv[i] * alpha
-        z0 = 2.0 * (ci * a0 - beta * Zcur[i, 0]) - Zprev[i, 0]
-        z1 = 2.0 * (ci * a1 - beta * Zcur[i, 1]) - Zprev[i, 1]
-        z2 = 2.0 * (ci * a2 - beta * Zcur[i, 2]) - Zprev[i, 2]
-        z3 = 2.0 * (ci * a3 - beta * Zcur[i, 3]) - Zprev[i, 3]
-        z4 = 2.0 * (ci * a4 - beta * Zcur[i, 4]) - Zprev[i, 4]
-        z5 = 2.0 * (ci * a5 - beta * Zcur[i, 5]) - Zprev[i, 5]
-        Zprev[i, 0] = z0
-        Zprev[i, 1] = z1
-        Zprev[i, 2] = z2
-        Zprev[i, 3] = z3
-        Zprev[i, 4] = z4
-        Zprev[i, 5] = z5
-        y0 = Y[i, 0] + cu * z0 + ch * z3
-        y1 = Y[i, 1] + cu * z1 + ch * z4
-        y2 = Y[i, 2] + cu * z2 + ch * z5
-        Y[i, 0] = y0
-        Y[i, 1] = y1
-        Y[i, 2] = y2
-        w = cw[i]
-        d0 = y0 - X0[i, 0]
-        d1 = y1 - X0[i, 1]
-        d2 = y2 - X0[i, 2]
-        s0 += w * d0 * d0
-        s1 += w * d1 * d1
-        s2 += w * d2 * d2
-    out = np.empty(3)
-    out[0] = s0
-    out[1] = s1
-    out[2] = s2
-    return out
+        B2[i, 0] = f * (ci * a0 - beta * B1[i, 0]) - B2[i, 0] + cu * X0[i, 0] + ch * H0[i, 0]
+        B2[i, 1] = f * (ci * a1 - beta * B1[i, 1]) - B2[i, 1] + cu * X0[i, 1] + ch * H0[i, 1]
+        B2[i, 2] = f * (ci * a2 - beta * B1[i, 2]) - B2[i, 2] + cu * X0[i, 2] + ch * H0[i, 2]
 
 
 # --------------------------------------------------------------------------

@@ -437,10 +437,11 @@ class FlowSolver:
         h = C^-½ g (the fixed neighbours' terms), a step is
         u ← a(S) u + b(S) h with a(t) = 1/t, b(t) = 1/t for λ > 0 and
         a(t) = 2 − 1/t, b(t) = −1/t for λ < 0; so
-        u_k = a(S)^k u_0 + b(S) Σ_{j<k} a(S)^j h.  Both functions are applied by
-        one Chebyshev recurrence (a sparse product per degree), stopped when
-        the bound on what is left falls below ``rtol`` × the displacement —
-        the accuracy of k CG solves, for the price of about two.  Returns None
+        u_k = a(S)^k u_0 + b(S) Σ_{j<k} a(S)^j h.  Both Chebyshev series are
+        summed by one Clenshaw recurrence on three columns (a sparse product
+        per degree; :func:`~shapeflow.solvers.chebyshev_steps`), to a degree at
+        which the bound on what is left is below ``rtol`` × the displacement —
+        the accuracy of k CG solves, for the price of about three.  Returns None
         (iterate instead) when the expansion would cost more than iterating.
         """
         free = isys.free
@@ -478,20 +479,17 @@ class FlowSolver:
         r, s_, e = isys.coupling
         n = V.shape[0]
         cols = np.flatnonzero(axes)
-        X0 = np.zeros((n, 3))
+        moving = free[:, None] & axes[None, :]          # (n, 3): entries the steps may change
+        X0 = np.where(moving, V, 0.0)
         G = np.zeros((n, 3))
-        X0[free] = V[free]
-        X0[:, ~axes] = 0.0
         if r.size:
             for q in cols:
                 G[:, q] = np.bincount(r, e * V[s_, q], minlength=n)
         c_full = np.where(free, isys.c, 0.0)
-        Y, degree = chebyshev_steps(A, c_full, X0, G, lo, hi, (cu, tu), (ch, th), self.rtol, need)
+        Y, degree = chebyshev_steps(A, c_full, X0, G, lo, hi, (cu, tu), (ch, th), self.rtol, need, steps=k)
         if Y is None or not np.all(np.isfinite(Y)):
             return None
-        out = V.copy()
-        rows = np.ix_(np.flatnonzero(free), cols)
-        out[rows] = Y[rows]
+        out = np.where(moving, Y, V)
         report.solver = "chebyshev"
         report.notes.append(f"{k} fixed-operator steps as one Chebyshev expansion of degree {degree} "
                             f"(spectrum bound [1, {hi:.3g}])")

@@ -244,56 +244,79 @@ def chebyshev_coefficients(f, a: float, b: float, max_degree: int = 2048):
 
 
 def chebyshev_steps(A: sp.csr_matrix, c: np.ndarray, X0: np.ndarray, G: np.ndarray, a: float, b: float,
-                    coef_u, coef_h, rtol: float, max_degree: int):
-    """X = f_u(C⁻¹A) X0 + f_h(C⁻¹A) C⁻¹G by one Chebyshev recurrence.
+                    coef_u, coef_h, rtol: float, max_degree: int, steps: int = 1):
+    """X = f_u(C⁻¹A) X0 + f_h(C⁻¹A) C⁻¹G by Clenshaw's recurrence on three columns.
 
     ``A`` is symmetric with ``A − C`` positive semi-definite on the rows where
     ``c`` > 0 (the others must be zero in X0 and G), so the spectrum of
     C⁻¹A (similar to the symmetric C^-½ A C^-½) lies in [a, b].  ``coef_u``,
     ``coef_h`` are (coefficients, tails) from :func:`chebyshev_coefficients`.
-    The recurrence Z_{j+1} = 2 Ã Z_j − Z_{j−1}, Ã = (2C⁻¹A − (a+b))/(b − a),
-    runs on the six columns [X0, C⁻¹G]; it stops once, for every column, the
-    uniform bound of the terms left, tail_u·‖X0‖ + tail_h·‖C⁻¹G‖ (norms
-    weighted by C, the symmetric form's), is below ``rtol`` × the C-norm of
-    X − X0.  Returns (X, degree), or (None, degree) if ``max_degree`` came first.
+
+    With Ã = (2C⁻¹A − (a+b))/(b − a) and H0 = C⁻¹G, the sum
+    Σ_j T_j(Ã)(cu_j X0 + ch_j H0) is evaluated backwards,
+    B_j = 2ÃB_{j+1} − B_{j+2} + cu_j X0 + ch_j H0 and X = ÃB_1 − B_2 + cu_0 X0 + ch_0 H0:
+    one sparse product of three columns per degree.  The degree N is fixed
+    beforehand: the smallest for which the uniform bound of the terms left out,
+    tail_u[N]·‖X0‖ + tail_h[N]·‖H0‖ (norms weighted by C, the symmetric
+    form's), is below ``rtol`` × an estimate of the C-norm of X − X0: the size
+    of one explicit step times √``steps`` (the number of flow steps the
+    expansion stands for; k similar steps move about k times one step, so the
+    estimate errs low, which costs a degree or two, not a second pass).  The
+    bound is then checked against the X − X0 found; if the estimate was too
+    large the sum is evaluated once more at the degree the check asks for.
+    Returns (X, degree), or (None, degree) if more than ``max_degree`` is needed.
     """
     n = A.shape[0]
     cu, tu = coef_u
     ch, th = coef_h
+    m = min(cu.size, ch.size, max_degree + 1)
     cinv = np.divide(1.0, c, out=np.zeros_like(c), where=c > 0)
-    Z0 = np.zeros((n, 6))
-    Z0[:, :3] = X0
-    Z0[:, 3:] = G * cinv[:, None]
-    nu = np.sqrt((c[:, None] * Z0[:, :3] ** 2).sum(axis=0))
-    nh = np.sqrt((c[:, None] * Z0[:, 3:] ** 2).sum(axis=0))
+    X0 = np.ascontiguousarray(X0, dtype=np.float64)
+    H0 = np.ascontiguousarray(G * cinv[:, None])
+    nu = np.sqrt(np.einsum("i,ij,ij->j", c, X0, X0))
+    nh = np.sqrt(np.einsum("i,ij,ij->j", c, H0, H0))
+    bounds = tu[:m, None] * nu + th[:m, None] * nh            # (m, 3): bound after degree j
     alpha, beta = 2.0 / (b - a), (a + b) / (b - a)
     K = kernels.get(n)
     use_k = K is not None and A.indices.dtype == np.int32 and A.indptr.dtype == np.int32
     data = np.ascontiguousarray(A.data, dtype=np.float64)
 
-    def step(Zcur, Zprev, Y, j):
-        """Zprev <- next term (in place), Y += its share; returns the C-norm² of Y − X0."""
+    def step(B1, B2, f, cuj, chj):
+        """B2 <- f·Ã B1 − B2 + cuj X0 + chj H0, in place."""
         if use_k:
-            return K.chebyshev_step(A.indptr, A.indices, data, cinv, Zcur, Zprev, Y, X0, c, alpha, beta,
-                                    cu[j], ch[j])
-        AZ = A @ Zcur
-        Zprev *= -1.0
-        Zprev += 2.0 * (alpha * cinv[:, None] * AZ - beta * Zcur)
-        Y += cu[j] * Zprev[:, :3] + ch[j] * Zprev[:, 3:]
-        D = Y - X0
-        return (c[:, None] * D * D).sum(axis=0)
+            K.clenshaw_step(A.indptr, A.indices, data, cinv, B1, B2, X0, H0, f, alpha, beta, cuj, chj)
+            return
+        AB = A @ B1
+        B2 *= -1.0
+        B2 += f * (alpha * cinv[:, None] * AB - beta * B1) + cuj * X0 + chj * H0
 
-    Y = cu[0] * Z0[:, :3] + ch[0] * Z0[:, 3:]
-    # Z1 = ÃZ0 is the same step from (Z0/2, 0): 2Ã(Z0/2) − 0
-    Zprev, Zcur = Z0, np.zeros((n, 6))
-    j = 1
-    change2 = step(0.5 * Z0, Zcur, Y, j)
-    while True:
-        bound = tu[j] * nu + th[j] * nh
-        if np.all(bound <= rtol * np.sqrt(change2)) or np.all(bound <= 1e-15 * (nu + nh)):
-            return Y, j
-        if j >= max_degree:
-            return None, j
-        j += 1
-        change2 = step(Zcur, Zprev, Y, j)
-        Zprev, Zcur = Zcur, Zprev
+    def degree_for(target):
+        ok = np.all(bounds <= target, axis=1)
+        return int(np.argmax(ok)) if ok.any() else None
+
+    def evaluate(N):
+        B1 = cu[N] * X0 + ch[N] * H0      # B_N (B_{N+1} = 0)
+        B2 = np.zeros_like(B1)            # B_{N+1}
+        for j in range(N - 1, 0, -1):
+            step(B1, B2, 2.0, cu[j], ch[j])
+            B1, B2 = B2, B1
+        step(B1, B2, 1.0, cu[0], ch[0])   # N >= 1: X = ÃB_1 − B_2 + c_0
+        return B2
+
+    # size of one explicit step, C-norm of C⁻¹(G − (A − C)X0) = H0 − C⁻¹A X0 + X0
+    T = np.zeros_like(X0)
+    step(X0, T, 1.0, 0.0, 0.0)           # T = Ã X0
+    E = H0 - (T + beta * X0) / alpha + X0
+    d_est = np.sqrt(np.einsum("i,ij,ij->j", c, E, E) * max(steps, 1))
+    floor = 1e-15 * (nu + nh)
+    N = degree_for(np.maximum(rtol * d_est, floor))
+    tried = set()
+    while N is not None and N not in tried:
+        tried.add(N)
+        Y = evaluate(max(N, 1))
+        D = Y - X0
+        change = np.sqrt(np.einsum("i,ij,ij->j", c, D, D))
+        if np.all(bounds[N] <= np.maximum(rtol * change, floor)):
+            return Y, max(N, 1)
+        N = degree_for(np.maximum(0.5 * rtol * change, floor))
+    return None, m - 1
