@@ -546,6 +546,20 @@ def _structure_core(fi, offsets, corner_edge, n_edges, pairs, skip_pair):
                 cnt += 1
 
 
+@njit(cache=True)
+def scaled_abs_row_max(indptr, indices, data, s):
+    """max over rows with s_i > 0 of s_i Σ_j |a_ij| s_j (a Gershgorin bound of SAS)."""
+    best = 0.0
+    for i in range(indptr.size - 1):
+        si = s[i]
+        if si > 0.0:
+            acc = 0.0
+            for q in range(indptr[i], indptr[i + 1]):
+                acc += abs(data[q]) * s[indices[q]]
+            best = max(best, si * acc)
+    return best
+
+
 @njit(parallel=True, cache=True, fastmath=False)
 def clenshaw_step(indptr, indices, data, cinv, B1, B2, X0, H0, f, alpha, beta, cu, ch):
     """One step of ``solvers.chebyshev_steps``: B2 <- f·Ã B1 − B2 + cu X0 + ch H0 (in place), fused."""

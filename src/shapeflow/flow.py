@@ -448,9 +448,14 @@ class FlowSolver:
         A = isys.A
         isq = np.zeros(V.shape[0])
         isq[free] = 1.0 / np.sqrt(isys.c[free])
-        # Gershgorin bound of S on the free rows (non-free rows are identity rows of A)
-        absA = sp.csr_matrix((np.abs(A.data), A.indices, A.indptr), shape=A.shape)  # duplicates kept: a bound still
-        upper = float((isq * (absA @ isq))[free].max())
+        # Gershgorin bound of S on the free rows (non-free rows are identity rows of A);
+        # duplicate entries (a chord shared by two faces) add their |a_ij|: still a bound
+        K = kernels.get(A.shape[0])
+        if K is not None:
+            upper = K.scaled_abs_row_max(A.indptr, A.indices, A.data, isq)
+        else:
+            absA = sp.csr_matrix((np.abs(A.data), A.indices, A.indptr), shape=A.shape)
+            upper = float((isq * (absA @ isq))[free].max())
         lo, hi = 1.0, max(upper, 1.0 + 1e-12)
         if lam > 0:
             fa = lambda t: 1.0 / t                     # noqa: E731

@@ -303,10 +303,10 @@ def chebyshev_steps(A: sp.csr_matrix, c: np.ndarray, X0: np.ndarray, G: np.ndarr
         step(B1, B2, 1.0, cu[0], ch[0])   # N >= 1: X = ÃB_1 − B_2 + c_0
         return B2
 
-    # size of one explicit step, C-norm of C⁻¹(G − (A − C)X0) = H0 − C⁻¹A X0 + X0
-    T = np.zeros_like(X0)
-    step(X0, T, 1.0, 0.0, 0.0)           # T = Ã X0
-    E = H0 - (T + beta * X0) / alpha + X0
+    # size of one explicit step, C-norm of C⁻¹(G − (A − C)X0) = H0 + X0 − C⁻¹A X0:
+    # one step with f = −1/α (f·ÃX0 = −C⁻¹A X0 + (β/α) X0)
+    E = np.zeros_like(X0)
+    step(X0, E, -1.0 / alpha, 1.0 - beta / alpha, 1.0)
     d_est = np.sqrt(np.einsum("i,ij,ij->j", c, E, E) * max(steps, 1))
     floor = 1e-15 * (nu + nh)
     N = degree_for(np.maximum(rtol * d_est, floor))
