@@ -180,7 +180,7 @@ def edge_data(fi, offsets, n):
     return edges, corner_edge, starts[:n_e + 1].copy(), order
 
 
-@njit(cache=True)
+@njit(parallel=True, cache=True)
 def _edge_data(fi, offsets, n, lo, hi, order, corner_edge, starts, start, fill):
     c = fi.size
     for f in range(offsets.size - 1):
@@ -203,8 +203,8 @@ def _edge_data(fi, offsets, n, lo, hi, order, corner_edge, starts, start, fill):
         v = lo[k]
         order[fill[v]] = k
         fill[v] += 1
-    # insertion sort of each bucket by hi (stable)
-    for v in range(n):
+    # insertion sort of each bucket by hi (stable); buckets are independent
+    for v in prange(n):
         s = start[v]
         e = start[v + 1]
         for q in range(s + 1, e):
@@ -456,7 +456,7 @@ def pair_pattern(pairs, n):
     return indptr, indices, pos_upper, pos_lower, pos_diag
 
 
-@njit(cache=True)
+@njit(parallel=True, cache=True)
 def _pair_pattern(pairs, n, indptr, indices, tag, pos_upper, pos_lower, pos_diag, fill):
     P = pairs.shape[0]
     for p in range(P):
@@ -481,7 +481,7 @@ def _pair_pattern(pairs, n, indptr, indices, tag, pos_upper, pos_lower, pos_diag
         q = fill[i]
         indices[q] = i
         tag[q] = 2 * P + i
-    for i in range(n):
+    for i in prange(n):   # rows are independent: sort, then record where each entry went
         s = indptr[i]
         e = indptr[i + 1]
         for q in range(s + 1, e):
