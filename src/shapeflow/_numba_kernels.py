@@ -28,6 +28,21 @@ def _zeros(shape, dtype=np.float64):
 # Jacobi-preconditioned CG on k columns at once (k <= 3), one matrix pass
 # --------------------------------------------------------------------------
 
+@njit(inline="always")
+def _row_times3(indptr, indices, data, B, i):
+    """Row i of A times the three columns of B (A in CSR)."""
+    a0 = 0.0
+    a1 = 0.0
+    a2 = 0.0
+    for q in range(indptr[i], indptr[i + 1]):
+        j = indices[q]
+        v = data[q]
+        a0 += v * B[j, 0]
+        a1 += v * B[j, 1]
+        a2 += v * B[j, 2]
+    return a0, a1, a2
+
+
 @njit(parallel=True, cache=True, fastmath=False)
 def _spmm_dot(indptr, indices, data, P, AP, k):
     """AP = A P (P, AP are (n, 3)); returns the k column dots pᵀAp."""
@@ -36,26 +51,14 @@ def _spmm_dot(indptr, indices, data, P, AP, k):
     s1 = 0.0
     s2 = 0.0
     for i in prange(n):
-        a0 = 0.0
-        a1 = 0.0
-        a2 = 0.0
-        for q in range(indptr[i], indptr[i + 1]):
-            j = indices[q]
-            v = data[q]
-            a0 += v * P[j, 0]
-            a1 += v * P[j, 1]
-            a2 += v * P[j, 2]
+        a0, a1, a2 = _row_times3(indptr, indices, data, P, i)
         AP[i, 0] = a0
         AP[i, 1] = a1
         AP[i, 2] = a2
         s0 += a0 * P[i, 0]
         s1 += a1 * P[i, 1]
         s2 += a2 * P[i, 2]
-    out = np.empty(3)
-    out[0] = s0
-    out[1] = s1
-    out[2] = s2
-    return out
+    return np.array([s0, s1, s2])
 
 
 @njit(parallel=True, cache=True, fastmath=False)
@@ -82,11 +85,7 @@ def _update_xr(X, R, P, AP, minv, alpha):
         s0 += r0 * r0 * m
         s1 += r1 * r1 * m
         s2 += r2 * r2 * m
-    out = np.empty(3)
-    out[0] = s0
-    out[1] = s1
-    out[2] = s2
-    return out
+    return np.array([s0, s1, s2])
 
 
 @njit(parallel=True, cache=True, fastmath=False)
@@ -275,8 +274,8 @@ def interior_data(nnz, pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw):
     """
     data = np.empty(nnz)
     diag = np.empty(pos_diag.size)
-    out = _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data, diag)
-    return data, diag, int(out[0]), float(out[1])
+    n_mixed, ratio = _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data, diag)
+    return data, diag, int(n_mixed), float(ratio)
 
 
 @njit(cache=True)
@@ -302,17 +301,33 @@ def _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data
             n_mixed += 1
         data[pos_upper[p]] = v
         data[pos_lower[p]] = v
-    out = np.empty(2)
-    out[0] = n_mixed
-    out[1] = ratio
-    return out
+    return n_mixed, ratio
 
 
 # --------------------------------------------------------------------------
 # assembly (operators.corner_cotangents and the scatters of operators._assemble)
 # --------------------------------------------------------------------------
 
-def assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, n_edges, edges,
+@njit(inline="always")
+def _corner(ax, ay, az, bx, by, bz, dx, dy, dz):
+    """Corner triangle (prev a, curr b, next d), as ``operators.corner_cotangents``:
+    |b − a|², |d − b|², (a − b)·(d − b) and twice the area."""
+    px = bx - ax
+    py = by - ay
+    pz = bz - az
+    qx = dx - bx
+    qy = dy - by
+    qz = dz - bz
+    lp = px * px + py * py + pz * pz
+    ln = qx * qx + qy * qy + qz * qz
+    dot = -(px * qx + py * qy + pz * qz)
+    cx = py * qz - pz * qy
+    cy = pz * qx - px * qz
+    cz = px * qy - py * qx
+    return lp, ln, dot, np.sqrt(cx * cx + cy * cy + cz * cz)
+
+
+def assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
                      P, n, blender_rules, rel_edge_tol, rel_shape_tol, blender_min, flt_eps):
     """``operators._assemble`` for the corner triangles in two passes, no per-corner temporaries.
 
@@ -322,7 +337,7 @@ def assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, n_edges, edg
     rounding).  Returns pair weights (P,), ring areas (n,), locked (n,) and
     the number of excluded corner triangles.
     """
-    elen2 = np.empty(n_edges)
+    elen2 = np.empty(edges.shape[0])
     locked = _zeros(n, np.bool_)
     pw = _zeros(P)
     ring = _zeros(n)
@@ -382,19 +397,8 @@ def _assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
             ia = fi[kp]
             ib = fi[k]
             ic = fi[o + (j + 1) % sz]
-            px = V[ib, 0] - V[ia, 0]
-            py = V[ib, 1] - V[ia, 1]
-            pz = V[ib, 2] - V[ia, 2]
-            qx = V[ic, 0] - V[ib, 0]
-            qy = V[ic, 1] - V[ib, 1]
-            qz = V[ic, 2] - V[ib, 2]
-            ln = qx * qx + qy * qy + qz * qz
-            lp = px * px + py * py + pz * pz
-            dot = -(px * qx + py * qy + pz * qz)
-            cx = py * qz - pz * qy
-            cy = pz * qx - px * qz
-            cz = px * qy - py * qx
-            d = np.sqrt(cx * cx + cy * cy + cz * cz)
+            lp, ln, dot, d = _corner(V[ia, 0], V[ia, 1], V[ia, 2], V[ib, 0], V[ib, 1], V[ib, 2],
+                                     V[ic, 0], V[ic, 1], V[ic, 2])
             if blender_rules:
                 if 0.5 * d < blender_min:
                     locked[ib] = True
@@ -565,15 +569,7 @@ def clenshaw_step(indptr, indices, data, cinv, B1, B2, X0, H0, f, alpha, beta, c
     """One step of ``solvers.chebyshev_steps``: B2 <- f·Ã B1 − B2 + cu X0 + ch H0 (in place), fused."""
     n = indptr.size - 1
     for i in prange(n):
-        a0 = 0.0
-        a1 = 0.0
-        a2 = 0.0
-        for q in range(indptr[i], indptr[i + 1]):
-            j = indices[q]
-            v = data[q]
-            a0 += v * B1[j, 0]
-            a1 += v * B1[j, 1]
-            a2 += v * B1[j, 2]
+        a0, a1, a2 = _row_times3(indptr, indices, data, B1, i)
         ci = cinv[i] * alpha
         B2[i, 0] = f * (ci * a0 - beta * B1[i, 0]) - B2[i, 0] + cu * X0[i, 0] + ch * H0[i, 0]
         B2[i, 1] = f * (ci * a1 - beta * B1[i, 1]) - B2[i, 1] + cu * X0[i, 1] + ch * H0[i, 1]
@@ -601,32 +597,12 @@ def brush_update_triangles(tris, tv, tp, tw, taw, VT, tval, tarea, update_area, 
         a = tv[0, t]
         b = tv[1, t]
         d = tv[2, t]
-        ax = VT[0, a]
-        ay = VT[1, a]
-        az = VT[2, a]
-        bx = VT[0, b]
-        by = VT[1, b]
-        bz = VT[2, b]
-        dx = VT[0, d]
-        dy = VT[1, d]
-        dz = VT[2, d]
-        ex = dx - bx
-        ey = dy - by
-        ez = dz - bz
-        px = bx - ax
-        py = by - ay
-        pz = bz - az
-        sx = dx - ax
-        sy = dy - ay
-        sz = dz - az
-        sq0 = ex * ex + ey * ey + ez * ez
+        sq2, sq0, dot, dbl = _corner(VT[0, a], VT[1, a], VT[2, a], VT[0, b], VT[1, b], VT[2, b],
+                                     VT[0, d], VT[1, d], VT[2, d])
+        sx = VT[0, d] - VT[0, a]       # the skip side from its own end points, as _tri_geometry
+        sy = VT[1, d] - VT[1, a]
+        sz = VT[2, d] - VT[2, a]
         sq1 = sx * sx + sy * sy + sz * sz
-        sq2 = px * px + py * py + pz * pz
-        dot = -(px * ex + py * ey + pz * ez)
-        cx = py * ez - pz * ey
-        cy = pz * ex - px * ez
-        cz = px * ey - py * ex
-        dbl = np.sqrt(cx * cx + cy * cy + cz * cz)
         inv = 1.0 / dbl if dbl > 0 else 0.0
         bad = dbl <= shape_tol * max(max(sq0, sq1), sq2)
         w = 0.0 if bad else tw[t]
@@ -664,27 +640,26 @@ def brush_update_triangles(tris, tv, tp, tw, taw, VT, tval, tarea, update_area, 
 
 
 @njit(cache=True)
-def brush_moved_triangles(idx, vf_ptr, vf_face, ft_ptr, fmark, out):
+def brush_moved_triangles(idx, vf_ptr, vf_face, ft_ptr, fstamp, out):
     """Triangles of the faces touching vertices ``idx``, each once (``Brush._moved``).
 
-    ``fmark`` (one bool per face, all False) is scratch, left all False;
-    ``out`` must hold every triangle found.  Returns their number.
+    ``fstamp`` (one int per face, values >= 0) is the scratch of
+    ``brush._unique_stamp``: faces seen are marked −1 and reset to 0.  ``out``
+    (a buffer kept by the brush, so a dab allocates nothing mesh-sized) must
+    hold every triangle found; returns their number.
     """
     nt = 0
-    nf = 0
     for q in range(idx.size):
         v = idx[q]
         for e in range(vf_ptr[v], vf_ptr[v + 1]):
             f = vf_face[e]
-            if not fmark[f]:
-                fmark[f] = True
+            if fstamp[f] >= 0:
+                fstamp[f] = -1
                 for t in range(ft_ptr[f], ft_ptr[f + 1]):
                     out[nt] = t
                     nt += 1
-                nf += 1
-    # clear the marks
     for q in range(idx.size):
         v = idx[q]
         for e in range(vf_ptr[v], vf_ptr[v + 1]):
-            fmark[vf_face[e]] = False
+            fstamp[vf_face[e]] = 0
     return nt

@@ -842,7 +842,7 @@ class Brush(_BrushBase):
         self._pshort = np.zeros(P + 1, dtype=bool)   # edges shorter than flow's relative threshold
         self._vlock = np.zeros(n, dtype=np.int64)    # degenerate triangles + short edges at each vertex
         self._fstamp = np.zeros(t.n_faces, dtype=np.int64)
-        self._fmark = None                 # compiled cache update: face marks, triangle buffer
+        self._tri_buf = None               # compiled cache update: the moved triangles
         # mean edge length h (flow's "relative" thresholds), from the initial positions
         E_ = t.edges
         el2 = ((self._V[E_[:, 0]] - self._V[E_[:, 1]]) ** 2).sum(axis=1) if E else np.zeros(0)
@@ -995,10 +995,10 @@ class Brush(_BrushBase):
             VT[q][idx] = new[:, q]
         K = kernels.get(self._n, min_size=0)
         if K is not None:   # the same triangles, in first-seen order, in one compiled pass
-            if self._fmark is None:
-                self._fmark = np.zeros(self._fstamp.size, dtype=bool)
+            if self._tri_buf is None:
                 self._tri_buf = np.empty(self._tv.shape[1], dtype=np.int64)
-            nt = K.brush_moved_triangles(idx, self._vf_ptr, self._vf_face, self._ft_ptr, self._fmark, self._tri_buf)
+            nt = K.brush_moved_triangles(idx, self._vf_ptr, self._vf_face, self._ft_ptr, self._fstamp,
+                                         self._tri_buf)
             self._update_triangles(self._tri_buf[:nt])
             return
         ent, _ = _csr_ranges(self._vf_ptr, idx)
@@ -1358,7 +1358,7 @@ class InflateBrush(_BrushBase):
         self._vf_ptr, order = _csr_by(t.face_indices, self._n)
         self._vf_face = t.corner_face[order]
         self._fstamp = np.zeros(t.n_faces, dtype=np.int64)
-        self._fmark = None                 # compiled cache update: face marks, triangle buffer
+        self._tri_buf = None               # compiled cache update: the moved triangles
 
     @property
     def strength(self) -> float:

@@ -191,19 +191,21 @@ class _Structure:
         """Previous corner of each corner (the topology's ``corner_prev``)."""
         return self._topo.corner_prev
 
+    def _weights(self):
+        if self._corner_w is None:   # made on demand (the compiled assembly derives them per face)
+            sizes = self._topo.face_sizes
+            self._corner_w = corner_weights(np.repeat(sizes, sizes), self.scheme)
+        return self._corner_w
+
     @property
     def corner_w(self) -> np.ndarray:
         """Cotangent weight of each corner triangle (depends on the face size only)."""
-        if self._corner_w is None:
-            sizes = self._topo.face_sizes
-            self._corner_w = corner_weights(np.repeat(sizes, sizes), self.scheme)
-        return self._corner_w[0]
+        return self._weights()[0]
 
     @property
     def corner_aw(self) -> np.ndarray:
         """Area weight of each corner triangle."""
-        self.corner_w  # noqa: B018 - fills the cache
-        return self._corner_w[1]
+        return self._weights()[1]
 
     def _numpy_core(self, scheme, n, sizes, offs, fi, nxt, prv, corner_edge, edges) -> np.ndarray:
         """Corner weights, chords, skip pairs and n-gon fan triangles; returns the pairs."""
@@ -467,7 +469,7 @@ def _assemble(mesh, scheme: str, thresholds: str, vertices: np.ndarray | None = 
     if K is not None:
         pw, ring, locked, n_bad = K.assemble_corners(
             np.ascontiguousarray(V, dtype=np.float64), st.fi, mesh.topology.face_offsets, st.corner_edge,
-            st.skip_pair, st.scheme == "tqlbo", edges.shape[0], edges, P, n, thresholds == "blender",
+            st.skip_pair, st.scheme == "tqlbo", edges, P, n, thresholds == "blender",
             REL_EDGE_TOL, REL_SHAPE_TOL, BLENDER_MIN, FLT_EPSILON)
     else:
         pw, ring, locked, n_bad = _assemble_corners_numpy(V, st, edges, P, n, thresholds)
