@@ -35,7 +35,7 @@ def _row_times3(indptr, indices, data, B, i):
     a1 = 0.0
     a2 = 0.0
     for q in range(indptr[i], indptr[i + 1]):
-        j = indices[q]
+        j = np.uint64(indices[q])   # unsigned: no negative-index wraparound test per access
         v = data[q]
         a0 += v * B[j, 0]
         a1 += v * B[j, 1]
@@ -108,7 +108,7 @@ def pcg3(indptr, indices, data, minv, B, X, rtol, maxiter):
     (α = 0, β = 1) once its preconditioned residual norm fell below ``rtol`` ×
     its initial value.  Returns the iteration count.
     """
-    work = np.empty((3, B.shape[0], 3))
+    work = _zeros((3, B.shape[0], 3))   # touched here: first touch inside the parallel loops is slow (page faults from two threads)
     return _pcg3(indptr, indices, data, minv, B, X, rtol, maxiter, work[0], work[1], work[2])
 
 
@@ -194,13 +194,13 @@ def _edge_data(fi, offsets, n, lo, hi, order, corner_edge, starts, start, fill):
             else:
                 lo[k] = b
                 hi[k] = a
-            start[lo[k] + 1] += 1
+            start[np.uint64(lo[k] + 1)] += 1
     for v in range(n):
         start[v + 1] += start[v]
     fill[:] = start[:-1]
     for k in range(c):
-        v = lo[k]
-        order[fill[v]] = k
+        v = np.uint64(lo[k])
+        order[np.uint64(fill[v])] = k
         fill[v] += 1
     # insertion sort of each bucket by hi (stable); buckets are independent
     for v in prange(n):
@@ -208,9 +208,9 @@ def _edge_data(fi, offsets, n, lo, hi, order, corner_edge, starts, start, fill):
         e = start[v + 1]
         for q in range(s + 1, e):
             k = order[q]
-            h = hi[k]
+            h = hi[np.uint64(k)]
             r = q - 1
-            while r >= s and hi[order[r]] > h:
+            while r >= s and hi[np.uint64(order[r])] > h:
                 order[r + 1] = order[r]
                 r -= 1
             order[r + 1] = k
@@ -218,7 +218,7 @@ def _edge_data(fi, offsets, n, lo, hi, order, corner_edge, starts, start, fill):
     prev_lo = -1
     prev_hi = -1
     for q in range(c):
-        k = order[q]
+        k = np.uint64(order[q])
         if lo[k] != prev_lo or hi[k] != prev_hi:
             starts[n_e] = q
             n_e += 1
@@ -291,16 +291,16 @@ def _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data
         else:
             d = 1.0
         diag[i] = d
-        data[pos_diag[i]] = d
+        data[np.uint64(pos_diag[i])] = d
     n_mixed = 0
     for p in range(pos_upper.size):
-        fa = free[pairs[p, 0]]
-        fb = free[pairs[p, 1]]
+        fa = free[np.uint64(pairs[p, 0])]
+        fb = free[np.uint64(pairs[p, 1])]
         v = -pw[p] if (fa and fb) else 0.0
         if fa != fb:
             n_mixed += 1
-        data[pos_upper[p]] = v
-        data[pos_lower[p]] = v
+        data[np.uint64(pos_upper[p])] = v
+        data[np.uint64(pos_lower[p])] = v
     return n_mixed, ratio
 
 
@@ -358,12 +358,12 @@ def _assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
         o = offsets[f]
         e = offsets[f + 1]
         for k in range(o, e):
-            a = fi[k]
-            b = fi[k + 1] if k + 1 < e else fi[o]
+            a = np.uint64(fi[k])
+            b = np.uint64(fi[k + 1] if k + 1 < e else fi[o])
             dx = V[b, 0] - V[a, 0]
             dy = V[b, 1] - V[a, 1]
             dz = V[b, 2] - V[a, 2]
-            elen2[corner_edge[k]] = dx * dx + dy * dy + dz * dz
+            elen2[np.uint64(corner_edge[k])] = dx * dx + dy * dy + dz * dz
     if blender_rules:
         thr = blender_min * blender_min
         for e in range(n_edges):
@@ -394,9 +394,9 @@ def _assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
         for j in range(sz):
             k = o + j
             kp = o + (j + sz - 1) % sz
-            ia = fi[kp]
-            ib = fi[k]
-            ic = fi[o + (j + 1) % sz]
+            ia = np.uint64(fi[kp])
+            ib = np.uint64(fi[k])
+            ic = np.uint64(fi[o + (j + 1) % sz])
             lp, ln, dot, d = _corner(V[ia, 0], V[ia, 1], V[ia, 2], V[ib, 0], V[ib, 1], V[ib, 2],
                                      V[ic, 0], V[ic, 1], V[ic, 2])
             if blender_rules:
@@ -418,9 +418,9 @@ def _assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
                 n_bad += 1
                 continue
             inv = 1.0 / d if d > 0.0 else 0.0
-            pw[corner_edge[k]] += wf * ((lp - dot) * inv)     # angle at prev, opposite curr-next
-            pw[corner_edge[kp]] += wf * ((ln - dot) * inv)    # angle at next, opposite prev-curr
-            pw[skip_pair[k]] += wf * (dot * inv)              # angle at curr, opposite prev-next
+            pw[np.uint64(corner_edge[k])] += wf * ((lp - dot) * inv)     # angle at prev, opposite curr-next
+            pw[np.uint64(corner_edge[kp])] += wf * ((ln - dot) * inv)    # angle at next, opposite prev-curr
+            pw[np.uint64(skip_pair[k])] += wf * (dot * inv)              # angle at curr, opposite prev-next
     return n_bad
 
 
@@ -436,8 +436,8 @@ def pair_degree(pairs, pw, n):
 @njit(cache=True)
 def _pair_degree(pairs, pw, deg0, deg1):
     for p in range(pw.size):
-        deg0[pairs[p, 0]] += pw[p]
-        deg1[pairs[p, 1]] += pw[p]
+        deg0[np.uint64(pairs[p, 0])] += pw[p]
+        deg1[np.uint64(pairs[p, 1])] += pw[p]
 
 
 def pair_pattern(pairs, n):
@@ -464,22 +464,22 @@ def pair_pattern(pairs, n):
 def _pair_pattern(pairs, n, indptr, indices, tag, pos_upper, pos_lower, pos_diag, fill):
     P = pairs.shape[0]
     for p in range(P):
-        indptr[pairs[p, 0] + 1] += 1
-        indptr[pairs[p, 1] + 1] += 1
+        indptr[np.uint64(pairs[p, 0] + 1)] += 1
+        indptr[np.uint64(pairs[p, 1] + 1)] += 1
     for i in range(n):
         indptr[i + 1] += indptr[i] + 1
     fill[:] = indptr[:-1]
     for p in range(P):
-        r = pairs[p, 0]
+        r = np.uint64(pairs[p, 0])
         q = fill[r]
-        indices[q] = pairs[p, 1]
-        tag[q] = p
+        indices[np.uint64(q)] = pairs[p, 1]
+        tag[np.uint64(q)] = p
         fill[r] = q + 1
     for p in range(P):
-        r = pairs[p, 1]
+        r = np.uint64(pairs[p, 1])
         q = fill[r]
-        indices[q] = pairs[p, 0]
-        tag[q] = P + p
+        indices[np.uint64(q)] = pairs[p, 0]
+        tag[np.uint64(q)] = P + p
         fill[r] = q + 1
     for i in range(n):
         q = fill[i]
@@ -501,11 +501,11 @@ def _pair_pattern(pairs, n, indptr, indices, tag, pos_upper, pos_lower, pos_diag
         for q in range(s, e):
             t = tag[q]
             if t < P:
-                pos_upper[t] = q
+                pos_upper[np.uint64(t)] = q
             elif t < 2 * P:
-                pos_lower[t - P] = q
+                pos_lower[np.uint64(t - P)] = q
             else:
-                pos_diag[t - 2 * P] = q
+                pos_diag[np.uint64(t - 2 * P)] = q
 
 
 def structure_core(fi, offsets, corner_edge, edges):
