@@ -345,6 +345,50 @@ def test_compiled_cache_update_matches_numpy():
     assert np.abs(v0 - v1).max() <= 1e-12 * np.ptp(V)
 
 
+@pytest.mark.skipif(not sf.kernels.available(), reason="numba (the 'fast' extra) not installed")
+@pytest.mark.parametrize("falloff", [None, "smooth"])
+def test_compiled_region_matches_numpy(falloff):
+    """Rim, degrees and the assembled system (boundary neighbours solved first, weights,
+    falloff) of the compiled region path give the NumPy path's dabs bit for bit."""
+    mesh = _bumpy_grid(20)
+    w = np.random.default_rng(5).uniform(0.2, 1.0, mesh.n_vertices)
+    centers = [[0.0, 5.0, 0.0], [10.0, 0.5, 0.0], [9.0, 9.0, 0.1]]
+    runs = []
+    for compiled in (False, True):
+        with sf.kernels.enabled(compiled):
+            b = sf.Brush(mesh, lam=-30.0, radius=4.0, lam_border=-5.0, weights=w, falloff=falloff)
+            dabs = [b.preview(c) for c in centers[:1]] + [None]
+            b.commit()
+            for c in centers[1:]:
+                b.dab(c)
+                dabs.append(b.last)
+            runs.append((b.vertices.copy(), [(d.indices, d.positions, d.rim) for d in dabs if d is not None]))
+    (v0, d0), (v1, d1) = runs
+    assert np.array_equal(v0, v1)
+    assert v0[mesh.topology.boundary_vertex_mask].tolist() != mesh.vertices[mesh.topology.boundary_vertex_mask].tolist()
+    for (i0, p0, r0), (i1, p1, r1) in zip(d0, d1):
+        assert np.array_equal(i0, i1) and np.array_equal(p0, p1) and np.array_equal(np.sort(r0), np.sort(r1))
+
+
+@pytest.mark.skipif(not sf.kernels.available(), reason="numba (the 'fast' extra) not installed")
+def test_compiled_local_order_matches_scipy():
+    """The compiled breadth-first searches of the local band ordering give scipy's order."""
+    mesh = cube_sphere(6, mix=0.4, seed=2)
+    e = mesh.topology.edges
+    rng = np.random.default_rng(0)
+    k = mesh.n_vertices
+    shuffle = rng.permutation(k)
+    a, c = shuffle[np.concatenate([e[:, 0], e[:, 1]])], shuffle[np.concatenate([e[:, 1], e[:, 0]])]
+    o = np.lexsort((rng.random(a.size), a))          # grouped by row, neighbours in a random order
+    ri, ci = a[o], c[o]
+    perms = []
+    for compiled in (False, True):
+        with sf.kernels.enabled(compiled):
+            perms.append(sf.Brush._local_rcm(k, ri, ci, grouped=True))
+    assert np.array_equal(perms[0][0], perms[1][0]) and np.array_equal(perms[0][1], perms[1][1])
+    assert np.array_equal(np.sort(perms[1][0]), np.arange(k))
+
+
 # --- strokes ----------------------------------------------------------------------------------
 
 def test_stroke_spacing():

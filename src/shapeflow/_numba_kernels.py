@@ -663,3 +663,106 @@ def brush_moved_triangles(idx, vf_ptr, vf_face, ft_ptr, fstamp, out):
         for e in range(vf_ptr[v], vf_ptr[v + 1]):
             fstamp[vf_face[e]] = 0
     return nt
+
+
+# --------------------------------------------------------------------------
+# brush: the region of a dab (brush.Brush._classify and _solve_region)
+# --------------------------------------------------------------------------
+
+@njit(cache=True)
+def brush_classify(S, slot, vn_ptr, vn_nb, vn_pair, pw, rim, deg):
+    """Rim flags and degrees of the region ``S`` (``slot[S]`` = 0..ns−1, −1 elsewhere).
+
+    As ``Brush._classify``: a vertex is on the rim when a face neighbour lies
+    outside the region (or it has none); its degree is the sum of its pair
+    weights in neighbour order (the order ``bincount`` adds them).  Returns
+    the number of neighbour entries of the region.
+    """
+    total = 0
+    for i in range(S.size):
+        v = np.uint64(S[i])
+        s = vn_ptr[v]
+        e = vn_ptr[v + 1]
+        r = e == s
+        acc = 0.0
+        for q in range(s, e):
+            if slot[np.uint64(vn_nb[q])] < 0:
+                r = True
+            acc += pw[np.uint64(vn_pair[q])]
+        rim[i] = r
+        deg[i] = acc
+        total += e - s
+    return total
+
+
+@njit(cache=True)
+def brush_assemble(S, R, loc, slot, vn_ptr, vn_nb, vn_pair, pw, V, cdiag, bl, Xb, ri, ci, vi, rhs, VU):
+    """The interior system of a dab, as ``Brush._solve_region``'s NumPy assembly.
+
+    Rows are the free region rows ``R`` (increasing; ``loc`` maps a region row
+    to its unknown, −1 if fixed).  Fills the off-diagonal entries (ri, ci,
+    vi = −w) grouped by row in neighbour order, the positions ``VU`` and
+    ``rhs`` = C·VU + Σ w·x over the fixed neighbours (their positions, or
+    ``Xb[bl]`` for neighbours solved in the boundary step), the coupling sum
+    formed first as ``bincount`` does.  Returns the number of entries.
+    """
+    m = 0
+    for a in range(R.size):
+        v = np.uint64(S[R[a]])
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        for q in range(vn_ptr[v], vn_ptr[v + 1]):
+            nb = np.uint64(vn_nb[q])
+            sn = np.uint64(slot[nb])        # neighbours of free rows are inside the region
+            w = pw[np.uint64(vn_pair[q])]
+            c = loc[sn]
+            if c >= 0:
+                ri[m] = a
+                ci[m] = c
+                vi[m] = -w
+                m += 1
+            else:
+                j = bl[sn]
+                if j >= 0:
+                    s0 += w * Xb[j, 0]
+                    s1 += w * Xb[j, 1]
+                    s2 += w * Xb[j, 2]
+                else:
+                    s0 += w * V[nb, 0]
+                    s1 += w * V[nb, 1]
+                    s2 += w * V[nb, 2]
+        x0 = V[v, 0]
+        x1 = V[v, 1]
+        x2 = V[v, 2]
+        VU[a, 0] = x0
+        VU[a, 1] = x1
+        VU[a, 2] = x2
+        cd = cdiag[a]
+        rhs[a, 0] = cd * x0 + s0
+        rhs[a, 1] = cd * x1 + s1
+        rhs[a, 2] = cd * x2 + s2
+    return m
+
+
+@njit(cache=True)
+def bfs_order(ptr, nbr, start, order, seen):
+    """Breadth-first order from ``start`` over the CSR graph (ptr, nbr), neighbours
+    in stored order (as scipy's ``breadth_first_order``); ``seen`` is all False
+    and is left so.  Returns the number of vertices reached."""
+    order[0] = start
+    seen[start] = True
+    head = 0
+    tail = 1
+    while head < tail:
+        u = np.uint64(order[head])
+        head += 1
+        for q in range(ptr[u], ptr[u + 1]):
+            w = nbr[q]
+            if not seen[np.uint64(w)]:
+                seen[np.uint64(w)] = True
+                order[tail] = w
+                tail += 1
+    for i in range(tail):
+        seen[np.uint64(order[i])] = False
+    return tail

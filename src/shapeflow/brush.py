@@ -1074,14 +1074,21 @@ class Brush(_BrushBase):
         ns = S.size
         slot = self._slot
         slot[S] = np.arange(ns)
-        ent, lens = _csr_ranges(self._vn_ptr, S)
-        rowid = np.repeat(np.arange(ns), lens)
-        nb = self._vn_nb.take(ent, mode="clip")
-        pwe = self._pw.take(self._vn_pair.take(ent, mode="clip"), mode="clip")
-        snb = slot.take(nb, mode="clip")
-        rim = np.bincount(rowid[snb < 0], minlength=ns) > 0
-        rim |= lens == 0
-        deg = np.bincount(rowid, pwe, minlength=ns)
+        K = kernels.get(self._n, min_size=0)
+        if K is not None:   # the same rim and degrees in one compiled pass; _solve_region walks again
+            rim = np.empty(ns, dtype=bool)
+            deg = np.empty(ns)
+            K.brush_classify(S, slot, self._vn_ptr, self._vn_nb, self._vn_pair, self._pw, rim, deg)
+            rowid = snb = pwe = None
+        else:
+            ent, lens = _csr_ranges(self._vn_ptr, S)
+            rowid = np.repeat(np.arange(ns), lens)
+            nb = self._vn_nb.take(ent, mode="clip")
+            pwe = self._pw.take(self._vn_pair.take(ent, mode="clip"), mode="clip")
+            snb = slot.take(nb, mode="clip")
+            rim = np.bincount(rowid[snb < 0], minlength=ns) > 0
+            rim |= lens == 0
+            deg = np.bincount(rowid, pwe, minlength=ns)
         w = self._w[S]
         if self._falloff_fn is not None:
             w = w * _apply_falloff(self._falloff_fn, d / self._radius)
@@ -1122,7 +1129,28 @@ class Brush(_BrushBase):
         R = np.flatnonzero(info["free_i"])
         k = R.size
         solver_used, bw = "none", 0
-        if k:
+        if k and info["rowid"] is None:   # compiled assembly (see _classify)
+            loc = np.full(ns, -1, dtype=np.int64)
+            loc[R] = np.arange(k)
+            cdiag = info["mass"][R] / (abs(lam) * info["w"][R])
+            U = S[R]
+            bl = np.full(ns, -1, dtype=np.int64)
+            if Rb.size:
+                bl[Rb] = np.arange(Rb.size)
+            nent = int(self._vn_ptr.take(U + 1, mode="clip").sum() - self._vn_ptr.take(U, mode="clip").sum())
+            ri = np.empty(nent, np.int64)
+            ci = np.empty(nent, np.int64)
+            vi = np.empty(nent)
+            rhs = np.empty((k, 3))
+            VU = np.empty((k, 3))
+            m = kernels.get(self._n, min_size=0).brush_assemble(
+                S, R, loc, self._slot, self._vn_ptr, self._vn_nb, self._vn_pair, self._pw, V, cdiag, bl,
+                np.ascontiguousarray(Xb, dtype=np.float64), ri, ci, vi, rhs, VU)
+            Xi, solver_used, bw = self._solve_spd(k, ri[:m], ci[:m], vi[:m], cdiag + info["deg"][R], rhs)
+            bad = ~np.isfinite(Xi).all(axis=1)
+            if bad.any():
+                Xi[bad] = VU[bad]
+        elif k:
             rowid, snb, pwe = info["rowid"], info["snb"], info["pwe"]
             loc = np.full(ns, -1, dtype=np.int64)
             loc[R] = np.arange(k)
@@ -1296,6 +1324,18 @@ class Brush(_BrushBase):
         """
         from scipy.sparse.csgraph import breadth_first_order, reverse_cuthill_mckee
 
+        K = kernels.get(k, min_size=0)
+        if grouped and K is not None:   # the same two searches, compiled, without a CSR matrix
+            ptr = np.zeros(k + 1, dtype=np.int64)
+            np.cumsum(np.bincount(ri, minlength=k), out=ptr[1:])
+            o = np.empty(k, np.int64)
+            seen = np.zeros(k, dtype=bool)
+            if K.bfs_order(ptr, ci, 0, o, seen) == k:
+                perm = np.empty(k, np.int64)
+                K.bfs_order(ptr, ci, o[k - 1], perm, seen)
+                inv = np.empty(k, np.int64)
+                inv[perm] = np.arange(k)
+                return perm, inv
         # float64 data: the graph routines would otherwise convert (copy) it
         if grouped:
             ptr = np.zeros(k + 1, dtype=np.int32)
