@@ -445,6 +445,29 @@ def test_spatial_index_stays_exact_as_vertices_move():
     assert b._far_count > 0 or b.tree_rebuilds > 1
 
 
+@pytest.mark.skipif(not sf.kernels.available(), reason="numba (the 'fast' extra) not installed")
+def test_cell_grid_query_is_exact():
+    """The compiled grid finds exactly the points within r (moved points too), whatever the
+    radius relative to the cell size, with centres inside and far outside the grid."""
+    from shapeflow.brush import _CellGrid
+
+    rng = np.random.default_rng(9)
+    P = rng.normal(size=(3000, 3)) * [1.0, 2.0, 0.3]
+    for h in (1e-9, 0.05, 0.4, 50.0):
+        g = _CellGrid(P, h)
+        tau = 0.01
+        V = P + rng.uniform(-1, 1, P.shape) * tau / np.sqrt(3)   # moved less than tau
+        far = np.zeros(len(P), bool)
+        far[::7] = True                                         # skipped: the caller checks them
+        for c, r in [(P[5], 0.3), (P[11], 1e-12), (np.array([0.0, 0.0, 0.0]), 2.5),
+                     (np.array([40.0, -3.0, 9.0]), 0.5), (np.array([40.0, 0.0, 0.0]), 45.0)]:
+            S, d = g.query(V, far, c, r + tau, r)
+            dist = np.linalg.norm(V - c, axis=1)
+            brute = np.flatnonzero((dist <= r) & ~far)
+            assert np.array_equal(np.sort(S), brute)
+            assert np.allclose(d, dist[S], rtol=1e-15, atol=0)
+
+
 def test_no_full_mesh_allocation_per_dab():
     """Peak memory of a dab does not grow with the mesh (no O(n) arrays per dab)."""
     peaks = []

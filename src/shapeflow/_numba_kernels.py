@@ -766,3 +766,64 @@ def bfs_order(ptr, nbr, start, order, seen):
     for i in range(tail):
         seen[np.uint64(order[i])] = False
     return tail
+
+
+@njit(cache=True)
+def grid_query(keys, starts, order, dims, lo, h, V, far, c0, c1, c2, R, r, out, dist):
+    """Vertices within ``r`` of (c0, c1, c2) at the positions ``V``, from a uniform grid.
+
+    The grid (cell size ``h`` from ``lo``, ``dims`` cells per axis; occupied
+    cell keys ``keys`` sorted, their vertices ``order[starts[p]:starts[p+1]]``)
+    holds positions that differ from ``V`` by at most R − r, except the
+    vertices flagged in ``far``, which are skipped (the caller checks them).
+    Writes the found vertices and their distances to ``out`` and ``dist``
+    (distance² summed x, y, z, as the NumPy query); returns their number.
+    """
+    lo_ = np.empty(3, np.int64)
+    hi_ = np.empty(3, np.int64)
+    cc = (c0, c1, c2)
+    for a in range(3):
+        fl = np.floor((cc[a] - R - lo[a]) / h)
+        fh = np.floor((cc[a] + R - lo[a]) / h)
+        lo_[a] = int(min(max(fl, 0.0), float(dims[a])))
+        hi_[a] = int(min(max(fh, -1.0), float(dims[a] - 1)))
+    r2 = r * r
+    n = 0
+    if lo_[0] > hi_[0] or lo_[1] > hi_[1] or lo_[2] > hi_[2]:
+        return 0
+    columns = (hi_[0] - lo_[0] + 1) * (hi_[1] - lo_[1] + 1)
+    if columns > keys.size:   # a sphere much larger than the cells: scan the occupied cells
+        for p in range(keys.size):
+            kz = keys[p] % dims[2]
+            kxy = keys[p] // dims[2]
+            ky = kxy % dims[1]
+            kx = kxy // dims[1]
+            if lo_[0] <= kx <= hi_[0] and lo_[1] <= ky <= hi_[1] and lo_[2] <= kz <= hi_[2]:
+                n = _grid_cell(starts, order, V, far, c0, c1, c2, r2, out, dist, p, n)
+        return n
+    for i in range(lo_[0], hi_[0] + 1):
+        for j in range(lo_[1], hi_[1] + 1):
+            base = (i * dims[1] + j) * dims[2]
+            kl = base + hi_[2]
+            p = np.searchsorted(keys, base + lo_[2])
+            while p < keys.size and keys[p] <= kl:
+                n = _grid_cell(starts, order, V, far, c0, c1, c2, r2, out, dist, p, n)
+                p += 1
+    return n
+
+
+@njit(inline="always")
+def _grid_cell(starts, order, V, far, c0, c1, c2, r2, out, dist, p, n):
+    for q in range(starts[p], starts[p + 1]):
+        v = np.uint64(order[q])
+        if far[v]:
+            continue
+        dx = V[v, 0] - c0
+        dy = V[v, 1] - c1
+        dz = V[v, 2] - c2
+        d2 = dx * dx + dy * dy + dz * dz
+        if d2 <= r2:
+            out[n] = v
+            dist[n] = np.sqrt(d2)
+            n += 1
+    return n

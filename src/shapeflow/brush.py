@@ -266,6 +266,44 @@ class _SingleThreadBLAS:
         return False
 
 
+def _sq_norms(D: np.ndarray) -> np.ndarray:
+    """Row norms² summed (x² + y²) + z², the order of the compiled grid query."""
+    x, y, z = D[:, 0], D[:, 1], D[:, 2]
+    return x * x + y * y + z * z
+
+
+class _CellGrid:
+    """Uniform grid of cell size ``h`` over fixed positions (the compiled spatial index).
+
+    Vertices are grouped by cell (sorted cell keys, CSR); a query visits the
+    cells that overlap the query sphere's bounding box.  Answers the same
+    question as the k-d tree it replaces (``cKDTree.query_ball_point`` plus
+    the distance test), about 5x faster for a dab of 2,600 vertices, with
+    preallocated output buffers (nothing mesh-sized per dab).
+    """
+
+    def __init__(self, P: np.ndarray, h: float):
+        n = P.shape[0]
+        self.lo = P.min(axis=0)
+        extent = float(np.ptp(P, axis=0).max())
+        # at most ~2**20 cells per axis: the keys fit in int64 whatever the radius
+        self.h = h = max(float(h), extent * 2.0 ** -20, np.finfo(np.float64).tiny)
+        ijk = np.floor((P - self.lo) / h).astype(np.int64)
+        self.dims = ijk.max(axis=0) + 1
+        key = (ijk[:, 0] * self.dims[1] + ijk[:, 1]) * self.dims[2] + ijk[:, 2]
+        self.order = np.argsort(key, kind="stable")
+        self.keys, first = np.unique(key[self.order], return_index=True)
+        self.starts = np.append(first, n).astype(np.int64)
+        self._out = np.empty(n, np.int64)
+        self._dist = np.empty(n)
+
+    def query(self, V: np.ndarray, far: np.ndarray, c: np.ndarray, R: float, r: float):
+        K = kernels.get(V.shape[0], min_size=0)
+        m = K.grid_query(self.keys, self.starts, self.order, self.dims, self.lo, self.h, V, far,
+                         float(c[0]), float(c[1]), float(c[2]), float(R), float(r), self._out, self._dist)
+        return self._out[:m].copy(), self._dist[:m].copy()
+
+
 def _csr_ranges(ptr: np.ndarray, rows: np.ndarray):
     """Positions of the entries of ``rows`` in a CSR layout, and the row lengths."""
     starts = ptr.take(rows, mode="clip")
@@ -508,13 +546,19 @@ class _BrushBase:
     def _ensure_tree(self) -> None:
         n = self._n
         if (self._tree is not None and self._far_count <= max(4096, n // 16)
-                and self._tau <= 2.0 * self._radius):
+                and self._tau <= 2.0 * self._radius
+                and (not isinstance(self._tree, _CellGrid) or self._radius + self._tau <= 4.0 * self._tree.h)):
             return
-        from scipy.spatial import cKDTree
-
         self._tree_V = self._V.copy()
-        self._tree = cKDTree(self._tree_V) if n else None
         self._tau = self.rebuild_fraction * self._radius
+        if not n:
+            self._tree = None
+        elif kernels.get(n, min_size=0) is not None:
+            self._tree = _CellGrid(self._tree_V, self._radius + self._tau)
+        else:
+            from scipy.spatial import cKDTree
+
+            self._tree = cKDTree(self._tree_V)
         self._far = np.zeros(n, dtype=bool)
         self._far_list = np.zeros(0, np.int64)
         self._far_count = 0
@@ -531,6 +575,15 @@ class _BrushBase:
         self._ensure_tree()
         if self._tree is None:
             return np.zeros(0, np.int64), np.zeros(0)
+        if isinstance(self._tree, _CellGrid):
+            S, d = self._tree.query(self._V, self._far, c, r + self._tau, r)
+            if self._far_count:
+                far = self._far_list[:self._far_count]
+                diff = self._V.take(far, axis=0, mode="clip") - c
+                d2 = _sq_norms(diff)
+                keep = d2 <= r * r
+                S, d = np.concatenate([S, far[keep]]), np.concatenate([d, np.sqrt(d2[keep])])
+            return S, d
         found = self._tree.query_ball_point(c, r + self._tau, return_sorted=False)
         cand = np.fromiter(found, dtype=np.int64, count=len(found))
         if self._far_count:
@@ -538,7 +591,7 @@ class _BrushBase:
         if cand.size == 0:
             return cand, np.zeros(0)
         diff = self._V.take(cand, axis=0, mode="clip") - c     # (row take: ~4x faster than V[cand])
-        d2 = np.einsum("ij,ij->i", diff, diff)
+        d2 = _sq_norms(diff)
         keep = d2 <= r * r
         return cand[keep], np.sqrt(d2[keep])
 
