@@ -116,6 +116,26 @@ def test_flow_same_result(name, mesh, lam, forced):
     assert fast.report.cg_iterations == pytest.approx(slow.report.cg_iterations, abs=1)
 
 
+@pytest.mark.parametrize("name,mesh", MESHES[:4], ids=[n for n, _ in MESHES[:4]])
+def test_interior_system_identical(name, mesh, forced):
+    """Matrix, diagonal and the coupling terms (free row, fixed column, weight) of the
+    interior system: the compiled pass gives the NumPy arrays, in the same order."""
+    w = np.random.default_rng(1).uniform(0.0, 1.0, mesh.n_vertices)
+    w[::5] = 0.0                                   # weight-0 vertices: held rows with free neighbours
+    fs = sf.FlowSolver(_fresh(mesh), weights=w)
+    op = fs.operator()                             # one operator for both (assembly is compared above)
+    out = []
+    for on in (True, False):
+        with kernels.enabled(on):
+            isys = fs._interior_system(op, -4.0, 1, [])
+            out.append((isys.A.toarray(), isys.solver._minv, isys.coupling, isys.c))
+    (A1, m1, c1, d1), (A0, m0, c0, d0) = out
+    assert np.array_equal(A1, A0) and np.array_equal(m1, m0) and np.array_equal(d1, d0)
+    assert c0[0].size > 0
+    for x, y in zip(c1, c0):
+        assert np.array_equal(x, y)
+
+
 @pytest.mark.parametrize("lam", [2.0, -3.0])
 def test_fixed_steps_same_result(lam, forced):
     """The compiled Clenshaw step against the NumPy one (open mesh: held rim, coupling term)."""

@@ -274,8 +274,44 @@ def interior_data(nnz, pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw):
     """
     data = np.empty(nnz)
     diag = np.empty(pos_diag.size)
-    n_mixed, ratio = _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data, diag)
-    return data, diag, int(n_mixed), float(ratio)
+    n_a, n_b, ratio = _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data, diag)
+    return data, diag, int(n_a + n_b), float(ratio)
+
+
+def interior_coupling(pairs, free, pw, n_mixed):
+    """The pairs with exactly one free end, as ``FlowSolver._interior_system`` lists them:
+    (free end, other end, weight), first the pairs whose first end is free, then the others,
+    each group in pair order."""
+    r = np.empty(n_mixed, np.int64)
+    s = np.empty(n_mixed, np.int64)
+    e = np.empty(n_mixed)
+    _interior_coupling(pairs, free, pw, r, s, e)
+    return r, s, e
+
+
+@njit(cache=True)
+def _interior_coupling(pairs, free, pw, r, s, e):
+    n_a = 0
+    for p in range(pw.size):
+        if free[np.uint64(pairs[p, 0])] and not free[np.uint64(pairs[p, 1])]:
+            n_a += 1
+    qa = 0
+    qb = n_a
+    for p in range(pw.size):
+        a = pairs[p, 0]
+        b = pairs[p, 1]
+        fa = free[np.uint64(a)]
+        fb = free[np.uint64(b)]
+        if fa and not fb:
+            r[qa] = a
+            s[qa] = b
+            e[qa] = pw[p]
+            qa += 1
+        elif fb and not fa:
+            r[qb] = b
+            s[qb] = a
+            e[qb] = pw[p]
+            qb += 1
 
 
 @njit(cache=True)
@@ -292,16 +328,19 @@ def _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data
             d = 1.0
         diag[i] = d
         data[np.uint64(pos_diag[i])] = d
-    n_mixed = 0
+    n_a = 0
+    n_b = 0
     for p in range(pos_upper.size):
         fa = free[np.uint64(pairs[p, 0])]
         fb = free[np.uint64(pairs[p, 1])]
         v = -pw[p] if (fa and fb) else 0.0
-        if fa != fb:
-            n_mixed += 1
+        if fa and not fb:
+            n_a += 1
+        elif fb and not fa:
+            n_b += 1
         data[np.uint64(pos_upper[p])] = v
         data[np.uint64(pos_lower[p])] = v
-    return n_mixed, ratio
+    return n_a, n_b, ratio
 
 
 # --------------------------------------------------------------------------

@@ -240,6 +240,15 @@ class _System:
         self.held = np.flatnonzero(~free) if idx is None else None   # interior system: rows kept as they are
 
 
+def _max_row_distance(A: np.ndarray, B: np.ndarray, chunk: int = 4096) -> float:
+    """max_i |A_i − B_i| (rows of (n, 3) arrays), in chunks small enough for malloc to reuse (no fresh pages)."""
+    best = 0.0
+    for s in range(0, A.shape[0], chunk):
+        d = A[s:s + chunk] - B[s:s + chunk]
+        best = max(best, float(np.einsum("ij,ij->i", d, d).max()))
+    return float(np.sqrt(best))
+
+
 def _row_scale(mass: np.ndarray, lam_abs: float, w: np.ndarray, rows: np.ndarray,
                coord_scale: float) -> np.ndarray:
     """C = m / (|λ| w) on ``rows`` (0 elsewhere).
@@ -338,7 +347,9 @@ class FlowSolver:
             n_mixed = -1
             ratio = float(np.max(np.abs(op.deg[free] / np.where(c[free] != 0, c[free], 1.0))))
         # terms of free rows on non-free columns move to the right-hand side
-        if n_mixed:
+        if n_mixed and K is not None:
+            coupling = K.interior_coupling(st.pairs, free, op.pw, n_mixed)
+        elif n_mixed:
             a = free[p0] & ~free[p1]
             b = free[p1] & ~free[p0]
             coupling = (np.concatenate([p0[a], p1[b]]), np.concatenate([p1[a], p0[b]]),
@@ -383,8 +394,13 @@ class FlowSolver:
         return _System(A, free, SPDSolver(A, method, rtol=self.rtol), (r, s, e), c, idx, local)
 
     # --- one step -------------------------------------------------------------
-    def _solve_boundary(self, V: np.ndarray, bsys: _System | None) -> np.ndarray:
-        """Positions after the boundary block's solve (a copy of V elsewhere)."""
+    def _solve_boundary(self, V: np.ndarray, bsys: _System | None, *, copy: bool = True) -> np.ndarray:
+        """Positions after the boundary block's solve (a copy of V elsewhere).
+
+        With ``copy=False`` and no boundary block, V itself (not to be written).
+        """
+        if bsys is None and not copy:
+            return V
         X = V.copy()
         if bsys is not None:
             r, s, e = bsys.coupling
@@ -398,7 +414,7 @@ class FlowSolver:
 
     def _step(self, V: np.ndarray, lam: float, lam_b: float, isys: _System | None,
               bsys: _System | None, boundary: np.ndarray, axes: np.ndarray, report: FlowReport) -> np.ndarray:
-        X = self._solve_boundary(V, bsys)
+        X = self._solve_boundary(V, bsys, copy=False)   # V itself when there is no boundary block
         if isys is not None:
             r, s, e = isys.coupling
             held = isys.held
@@ -418,7 +434,7 @@ class FlowSolver:
             report.notes.append(f"{int(bad.sum())} vertices with a non-finite solution kept in place")
         # V + sign (X - V), per vertex sign (boundary vertices follow λ_b), on the chosen axes
         s_in, s_b = (1.0 if lam >= 0 else -1.0), (1.0 if lam_b >= 0 else -1.0)
-        d = np.subtract(X, V, out=X)
+        d = np.subtract(X, V, out=None if X is V else X)
         if s_in != s_b and boundary.any():
             d *= np.where(boundary, s_b, s_in)[:, None]
         elif s_in < 0:
@@ -562,7 +578,7 @@ class FlowSolver:
                 report.notes.append(f"{inc} edges with inconsistent face orientation: the volume being preserved is ill-defined")
         center0 = V0.mean(axis=0) if preserve_volume else None
         n_solves = iterations if update == "fixed" else 1
-        V = np.array(V0)
+        V = V0                     # read only: every step returns new positions
         for it in range(int(iterations)):
             if it == 0 or update == "recompute":
                 if it > 0:
@@ -594,9 +610,12 @@ class FlowSolver:
         return self._result(V, report, t0)
 
     def _result(self, V: np.ndarray, report: FlowReport, t0: float) -> Mesh:
-        out = self.mesh.with_vertices(V) if V is not self.mesh.vertices else self.mesh.with_vertices(self.mesh.vertices)
-        d = V - self.mesh.vertices
-        report.max_displacement = float(np.sqrt(np.einsum("ij,ij->i", d, d).max())) if V.size else 0.0
+        V0 = self.mesh.vertices
+        if V is V0:
+            out = self.mesh.with_vertices(V0)
+        else:   # V is a new array of this run: handed over without a copy (validated if not finite)
+            out = self.mesh._with_own_vertices(V)
+        report.max_displacement = _max_row_distance(V, V0)
         report.seconds = time.perf_counter() - t0
         out.report = report
         return out

@@ -497,6 +497,23 @@ class Mesh:
             attrs.update(attributes)
         return Mesh(vertices, None, attributes=attrs, _topology=self._topology)
 
+    def _with_own_vertices(self, V: np.ndarray) -> "Mesh":
+        """``with_vertices(V)`` for an array the caller hands over (not copied).
+
+        For library code that made ``V`` itself: float64 (n, 3) C-contiguous,
+        not referenced elsewhere.  Falls back to the validating constructor
+        if it is anything else or holds a non-finite value.
+        """
+        if (V.dtype != np.float64 or V.ndim != 2 or V.shape != self._vertices.shape
+                or not V.flags.c_contiguous or not V.flags.owndata or not np.isfinite(V).all()):
+            return self.with_vertices(V)
+        out = Mesh.__new__(Mesh)
+        V.flags.writeable = False
+        out._vertices = V
+        out._topology = self._topology
+        out._attributes = dict(self._attributes)
+        return out
+
     def with_attributes(self, **attributes) -> "Mesh":
         """A mesh with extra or replaced per-vertex attributes (``None`` removes one)."""
         attrs = dict(self._attributes)

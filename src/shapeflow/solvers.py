@@ -100,7 +100,10 @@ class SPDSolver:
         self.stats = SolveStats(method)
         self._factor = None
         d = A.diagonal() if diagonal is None else np.asarray(diagonal, dtype=np.float64)
-        self._minv = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 1.0)
+        if d.size and d.min() > 0:      # the usual case: no temporaries
+            self._minv = np.divide(1.0, d)
+        else:
+            self._minv = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 1.0)
 
     def solve(self, B: np.ndarray, X0: np.ndarray | None = None) -> np.ndarray:
         B = np.ascontiguousarray(B, dtype=np.float64)
