@@ -371,6 +371,25 @@ def test_compiled_region_matches_numpy(falloff):
 
 
 @pytest.mark.skipif(not sf.kernels.available(), reason="numba (the 'fast' extra) not installed")
+def test_kernels_switched_off_on_a_live_brush():
+    """A brush made with the compiled kernels keeps working (same dabs) when they are switched
+    off and on again: the spatial index follows."""
+    mesh = cube_sphere(8, mix=0.3, seed=4)
+    c = mesh.vertices[[3, 40, 77]]
+    ref = sf.Brush(mesh, lam=-20.0, radius=0.5)
+    with sf.kernels.enabled(False):
+        for x in c:
+            ref.dab(x)
+    b = sf.Brush(mesh, lam=-20.0, radius=0.5)
+    b.dab(c[0])
+    with sf.kernels.enabled(False):
+        b.dab(c[1])
+    b.dab(c[2])
+    assert b.tree_rebuilds == 3
+    assert np.abs(b.vertices - ref.vertices).max() <= 1e-12 * mesh.diagonal
+
+
+@pytest.mark.skipif(not sf.kernels.available(), reason="numba (the 'fast' extra) not installed")
 def test_compiled_local_order_matches_scipy():
     """The compiled breadth-first searches of the local band ordering give scipy's order."""
     mesh = cube_sphere(6, mix=0.4, seed=2)

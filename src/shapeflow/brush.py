@@ -278,8 +278,11 @@ class _CellGrid:
     Vertices are grouped by cell (sorted cell keys, CSR); a query visits the
     cells that overlap the query sphere's bounding box.  Answers the same
     question as the k-d tree it replaces (``cKDTree.query_ball_point`` plus
-    the distance test), about 5x faster for a dab of 2,600 vertices, with
-    preallocated output buffers (nothing mesh-sized per dab).
+    the distance test), ~0.07 ms instead of ~0.55 ms for a dab of 2,600
+    vertices, with preallocated output buffers (nothing mesh-sized per dab).
+    A query sphere much larger than the cells scans the occupied cells
+    instead, so any radius is answered (the brush rebuilds the grid when its
+    radius grows past 4 cells).
     """
 
     def __init__(self, P: np.ndarray, h: float):
@@ -545,15 +548,17 @@ class _BrushBase:
     # --- spatial queries ---------------------------------------------------------------
     def _ensure_tree(self) -> None:
         n = self._n
+        grid = kernels.get(n, min_size=0) is not None     # the compiled grid, else SciPy's k-d tree
         if (self._tree is not None and self._far_count <= max(4096, n // 16)
                 and self._tau <= 2.0 * self._radius
-                and (not isinstance(self._tree, _CellGrid) or self._radius + self._tau <= 4.0 * self._tree.h)):
+                and isinstance(self._tree, _CellGrid) == grid
+                and (not grid or self._radius + self._tau <= 4.0 * self._tree.h)):
             return
         self._tree_V = self._V.copy()
         self._tau = self.rebuild_fraction * self._radius
         if not n:
             self._tree = None
-        elif kernels.get(n, min_size=0) is not None:
+        elif grid:
             self._tree = _CellGrid(self._tree_V, self._radius + self._tau)
         else:
             from scipy.spatial import cKDTree
