@@ -273,33 +273,31 @@ def interior_data(nnz, pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw):
     """Matrix data of the interior system (``FlowSolver._interior_system``) in one pass.
 
     Free rows: c + D on the diagonal, −w_ij where both ends are free; other
-    rows are identity rows.  Returns the data array, the diagonal, the number
-    of pairs with exactly one free end (their terms go to the right-hand
-    side) and max D/c over the free rows with c ≠ 0 (for the κ estimate).
+    rows are identity rows.  Returns the data array, the diagonal, the numbers
+    of pairs with only their first / only their second end free (their terms
+    go to the right-hand side; see :func:`interior_coupling`) and max D/c over
+    the free rows with c ≠ 0 (for the κ estimate).
     """
     data = np.empty(nnz)
     diag = np.empty(pos_diag.size)
     n_a, n_b, ratio = _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data, diag)
-    return data, diag, int(n_a + n_b), float(ratio)
+    return data, diag, (int(n_a), int(n_b)), float(ratio)
 
 
-def interior_coupling(pairs, free, pw, n_mixed):
+def interior_coupling(pairs, free, pw, mixed):
     """The pairs with exactly one free end, as ``FlowSolver._interior_system`` lists them:
     (free end, other end, weight), first the pairs whose first end is free, then the others,
-    each group in pair order."""
-    r = np.empty(n_mixed, np.int64)
-    s = np.empty(n_mixed, np.int64)
-    e = np.empty(n_mixed)
-    _interior_coupling(pairs, free, pw, r, s, e)
+    each group in pair order.  ``mixed`` = the two counts from :func:`interior_data`."""
+    n_a, n_b = mixed
+    r = np.empty(n_a + n_b, np.int64)
+    s = np.empty(n_a + n_b, np.int64)
+    e = np.empty(n_a + n_b)
+    _interior_coupling(pairs, free, pw, n_a, r, s, e)
     return r, s, e
 
 
 @njit(cache=True)
-def _interior_coupling(pairs, free, pw, r, s, e):
-    n_a = 0
-    for p in range(pw.size):
-        if free[np.uint64(pairs[p, 0])] and not free[np.uint64(pairs[p, 1])]:
-            n_a += 1
+def _interior_coupling(pairs, free, pw, n_a, r, s, e):
     qa = 0
     qb = n_a
     for p in range(pw.size):

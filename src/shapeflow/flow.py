@@ -337,9 +337,10 @@ class FlowSolver:
         p0, p1 = st.pairs[:, 0], st.pairs[:, 1]
         K = kernels.get(st.n)
         if K is not None:   # the same matrix in one compiled pass
-            data, diag, n_mixed, ratio = K.interior_data(st.indices.size, st.pos_diag, st.pos_upper, st.pos_lower,
-                                                         st.pairs, free, c, op.deg, op.pw)
+            data, diag, mixed, ratio = K.interior_data(st.indices.size, st.pos_diag, st.pos_upper, st.pos_lower,
+                                                       st.pairs, free, c, op.deg, op.pw)
             A = st.matrix_from_data(data)
+            n_mixed = sum(mixed)
         else:
             both = free[p0] & free[p1]
             diag = np.where(free, c + op.deg, 1.0)
@@ -348,7 +349,7 @@ class FlowSolver:
             ratio = float(np.max(np.abs(op.deg[free] / np.where(c[free] != 0, c[free], 1.0))))
         # terms of free rows on non-free columns move to the right-hand side
         if n_mixed and K is not None:
-            coupling = K.interior_coupling(st.pairs, free, op.pw, n_mixed)
+            coupling = K.interior_coupling(st.pairs, free, op.pw, mixed)
         elif n_mixed:
             a = free[p0] & ~free[p1]
             b = free[p1] & ~free[p0]
