@@ -78,7 +78,7 @@ import scipy.sparse as sp
 
 from . import kernels
 from .errors import ParameterError
-from .flow import resolve_weights
+from .flow import _finite, resolve_weights
 from .mesh import Mesh
 from .operators import REL_EDGE_TOL, REL_SHAPE_TOL, _check_scheme, _structure
 
@@ -103,16 +103,6 @@ LOCAL_RCM_WORK = 1e7
 # --------------------------------------------------------------------------
 # parameters
 # --------------------------------------------------------------------------
-
-def _finite(name: str, x) -> float:
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a number, got {x!r}") from None
-    if not math.isfinite(v):
-        raise ParameterError(f"{name} must be finite, got {v}")
-    return v
-
 
 def _positive(name: str, x) -> float:
     v = _finite(name, x)
@@ -581,18 +571,19 @@ class _BrushBase:
         if self._tree is None:
             return np.zeros(0, np.int64), np.zeros(0)
         if isinstance(self._tree, _CellGrid):
-            S, d = self._tree.query(self._V, self._far, c, r + self._tau, r)
+            S, d = self._tree.query(self._V, self._far, c, r + self._tau, r)   # skips the far vertices
             if self._far_count:
-                far = self._far_list[:self._far_count]
-                diff = self._V.take(far, axis=0, mode="clip") - c
-                d2 = _sq_norms(diff)
-                keep = d2 <= r * r
-                S, d = np.concatenate([S, far[keep]]), np.concatenate([d, np.sqrt(d2[keep])])
+                Sf, df = self._within(self._far_list[:self._far_count], c, r)
+                S, d = np.concatenate([S, Sf]), np.concatenate([d, df])
             return S, d
         found = self._tree.query_ball_point(c, r + self._tau, return_sorted=False)
         cand = np.fromiter(found, dtype=np.int64, count=len(found))
         if self._far_count:
             cand = np.concatenate([cand[~self._far[cand]], self._far_list[:self._far_count]])
+        return self._within(cand, c, r)
+
+    def _within(self, cand: np.ndarray, c: np.ndarray, r: float):
+        """The candidates within ``r`` of ``c`` at the current positions, and their distances."""
         if cand.size == 0:
             return cand, np.zeros(0)
         diff = self._V.take(cand, axis=0, mode="clip") - c     # (row take: ~4x faster than V[cand])
@@ -1187,60 +1178,16 @@ class Brush(_BrushBase):
         R = np.flatnonzero(info["free_i"])
         k = R.size
         solver_used, bw = "none", 0
-        if k and info["rowid"] is None:   # compiled assembly (see _classify)
+        if k:
             loc = np.full(ns, -1, dtype=np.int64)
             loc[R] = np.arange(k)
             cdiag = info["mass"][R] / (abs(lam) * info["w"][R])
             U = S[R]
-            bl = np.full(ns, -1, dtype=np.int64)
-            if Rb.size:
-                bl[Rb] = np.arange(Rb.size)
-            nent = int(self._vn_ptr.take(U + 1, mode="clip").sum() - self._vn_ptr.take(U, mode="clip").sum())
-            ri = np.empty(nent, np.int64)
-            ci = np.empty(nent, np.int64)
-            vi = np.empty(nent)
-            rhs = np.empty((k, 3))
-            VU = np.empty((k, 3))
-            m = kernels.get(self._n, min_size=0).brush_assemble(
-                S, R, loc, self._slot, self._vn_ptr, self._vn_nb, self._vn_pair, self._pw, V, cdiag, bl,
-                np.ascontiguousarray(Xb, dtype=np.float64), ri, ci, vi, rhs, VU)
-            Xi, solver_used, bw = self._solve_spd(k, ri[:m], ci[:m], vi[:m], cdiag + info["deg"][R], rhs)
-            bad = ~np.isfinite(Xi).all(axis=1)
-            if bad.any():
-                Xi[bad] = VU[bad]
-        elif k:
-            rowid, snb, pwe = info["rowid"], info["snb"], info["pwe"]
-            loc = np.full(ns, -1, dtype=np.int64)
-            loc[R] = np.arange(k)
-            lr = loc.take(rowid, mode="clip")
-            sel = np.flatnonzero(lr >= 0)
-            r_loc = lr.take(sel, mode="clip")
-            nbr = snb.take(sel, mode="clip")      # neighbours of free rows are all inside
-            c_loc = loc.take(nbr, mode="clip")
-            w_e = pwe.take(sel, mode="clip")
-            inm = c_loc >= 0
-            cdiag = info["mass"][R] / (abs(lam) * info["w"][R])
-            U = S[R]
-            VU = V.take(U, axis=0, mode="clip")
-            rhs = cdiag[:, None] * VU
-            cp = np.flatnonzero(~inm)
-            if cp.size:
-                rows_c = r_loc[cp]
-                Xn = V.take(S[nbr[cp]], axis=0, mode="clip")
-                if Rb.size:
-                    # neighbours solved on the boundary enter with their new (pre-sign) value
-                    bl = np.full(ns, -1, dtype=np.int64)
-                    bl[Rb] = np.arange(Rb.size)
-                    j = bl[nbr[cp]]
-                    hit = j >= 0
-                    if hit.any():
-                        Xn[hit] = Xb[j[hit]]
-                wc = w_e[cp]
-                for q in range(3):
-                    rhs[:, q] += np.bincount(rows_c, wc * Xn[:, q], minlength=k)
-            m = np.flatnonzero(inm)
-            Xi, solver_used, bw = self._solve_spd(k, r_loc.take(m, mode="clip"), c_loc.take(m, mode="clip"),
-                                                  -w_e.take(m, mode="clip"), cdiag + info["deg"][R], rhs)
+            if info["rowid"] is None:   # compiled assembly (see _classify)
+                ri, ci, vi, rhs, VU = self._assemble_compiled(S, R, loc, cdiag, Rb, Xb)
+            else:
+                ri, ci, vi, rhs, VU = self._assemble_numpy(S, R, loc, cdiag, Rb, Xb, info)
+            Xi, solver_used, bw = self._solve_spd(k, ri, ci, vi, cdiag + info["deg"][R], rhs)
             bad = ~np.isfinite(Xi).all(axis=1)
             if bad.any():
                 Xi[bad] = VU[bad]
@@ -1266,6 +1213,57 @@ class Brush(_BrushBase):
             idx, new, old = (np.concatenate(p) for p in (idx_parts, new_parts, old_parts))
         return Dab(c, self._radius, self._perm[idx], new, old, rim=self._perm[rim], n_inside=ns,
                    solver=solver_used, bandwidth=bw, _internal=idx)
+
+    def _assemble_compiled(self, S, R, loc, cdiag, Rb, Xb):
+        """The interior system of a dab in one compiled pass (``brush_assemble``):
+        off-diagonal entries (ri, ci, vi), grouped by row, the right-hand side and the positions."""
+        ns, k = S.size, R.size
+        U = S[R]
+        bl = np.full(ns, -1, dtype=np.int64)
+        if Rb.size:
+            bl[Rb] = np.arange(Rb.size)
+        nent = int(self._vn_ptr.take(U + 1, mode="clip").sum() - self._vn_ptr.take(U, mode="clip").sum())
+        ri = np.empty(nent, np.int64)
+        ci = np.empty(nent, np.int64)
+        vi = np.empty(nent)
+        rhs = np.empty((k, 3))
+        VU = np.empty((k, 3))
+        m = kernels.get(self._n, min_size=0).brush_assemble(
+            S, R, loc, self._slot, self._vn_ptr, self._vn_nb, self._vn_pair, self._pw, self._V, cdiag, bl,
+            np.ascontiguousarray(Xb, dtype=np.float64), ri, ci, vi, rhs, VU)
+        return ri[:m], ci[:m], vi[:m], rhs, VU
+
+    def _assemble_numpy(self, S, R, loc, cdiag, Rb, Xb, info):
+        """The same system as :meth:`_assemble_compiled`, from the neighbour lists of ``_classify``."""
+        V = self._V
+        ns, k = S.size, R.size
+        rowid, snb, pwe = info["rowid"], info["snb"], info["pwe"]
+        lr = loc.take(rowid, mode="clip")
+        sel = np.flatnonzero(lr >= 0)
+        r_loc = lr.take(sel, mode="clip")
+        nbr = snb.take(sel, mode="clip")      # neighbours of free rows are all inside
+        c_loc = loc.take(nbr, mode="clip")
+        w_e = pwe.take(sel, mode="clip")
+        inm = c_loc >= 0
+        VU = V.take(S[R], axis=0, mode="clip")
+        rhs = cdiag[:, None] * VU
+        cp = np.flatnonzero(~inm)
+        if cp.size:
+            rows_c = r_loc[cp]
+            Xn = V.take(S[nbr[cp]], axis=0, mode="clip")
+            if Rb.size:
+                # neighbours solved on the boundary enter with their new (pre-sign) value
+                bl = np.full(ns, -1, dtype=np.int64)
+                bl[Rb] = np.arange(Rb.size)
+                j = bl[nbr[cp]]
+                hit = j >= 0
+                if hit.any():
+                    Xn[hit] = Xb[j[hit]]
+            wc = w_e[cp]
+            for q in range(3):
+                rhs[:, q] += np.bincount(rows_c, wc * Xn[:, q], minlength=k)
+        m = np.flatnonzero(inm)
+        return r_loc.take(m, mode="clip"), c_loc.take(m, mode="clip"), -w_e.take(m, mode="clip"), rhs, VU
 
     def _solve_boundary(self, S: np.ndarray, info: dict):
         """flow's boundary step on the free boundary vertices of the region."""
