@@ -5,10 +5,10 @@ run both and compare.  Kernels are compiled on first use and cached on disk
 (``cache=True``), so a new process pays the compilation once per machine.
 
 Large arrays are allocated by NumPy in the plain-Python wrappers and filled by
-the compiled ``_`` functions: NumPy asks the kernel for transparent huge
-pages on big allocations, numba's allocator does not, and on virtual machines
-first-touch page faults otherwise cost more than the loops (measured: 100 MB
-fresh costs ~15 ms through NumPy against ~75 ms through numba).
+the compiled ``_`` functions, so every big allocation goes through NumPy,
+whose page policy the callers set (:func:`shapeflow.kernels.small_pages`:
+on the virtual machines we measure on, first-touch page faults cost more
+than many of the loops).
 
 Indices read from arrays are cast to ``np.uint64`` before they index another
 array: numba tests every signed index for a negative value (wraparound), and
@@ -23,7 +23,8 @@ from numba import njit, prange
 
 
 def _zeros(shape, dtype=np.float64):
-    """np.zeros through np.empty: calloc'd memory faults in 4 KiB pages, NumPy's empty gets huge pages."""
+    """np.zeros as np.empty + fill: the pages are first touched here, by one thread, not by
+    both threads of a parallel loop (concurrent page faults contend for the memory map)."""
     a = np.empty(shape, dtype)
     a.fill(0)
     return a

@@ -796,6 +796,7 @@ class Brush(_BrushBase):
     >>> sculpted = brush.mesh
     """
 
+    @kernels.with_small_pages
     def __init__(self, mesh: Mesh, *, lam: float = -50.0, radius: float, falloff=None,
                  lam_border: float = 0.0, weights=None, scheme: str = "tqlbo", normalized: bool = True,
                  solver: str = "auto", undo_limit: int = 64, rebuild_fraction: float = 0.15):

@@ -87,6 +87,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
+from . import kernels
 from .errors import ParameterError
 from .flow import FlowReport, FlowSolver, _finite, check_run_options
 from .mesh import Mesh
@@ -368,6 +369,7 @@ def _check_lams(lams) -> np.ndarray:
     return np.array(vals, dtype=np.float64)
 
 
+@kernels.with_small_pages
 def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterations: int = 1,
            normalized: bool = True, weights=None, invert_weights: bool = False,
            preserve_volume: bool = False, axes: Sequence[bool] | str = (True, True, True),

@@ -279,6 +279,7 @@ class FlowSolver:
     >>> shapes = [solver.run(lam) for lam in (-5.0, -10.0)]
     """
 
+    @kernels.with_small_pages
     def __init__(self, mesh: Mesh, *, lam_border: float = 0.0, normalized: bool = True,
                  weights=None, invert_weights: bool = False, scheme: str | None = None,
                  compat: str | None = None, solver: str = "auto", rtol: float = DEFAULT_RTOL):
@@ -545,6 +546,7 @@ class FlowSolver:
         return out
 
     # --- public -----------------------------------------------------------------
+    @kernels.with_small_pages
     def run(self, lam: float, *, iterations: int = 1, preserve_volume: bool = False,
             axes=(True, True, True), update: str = "fixed",
             progress: Callable[[int, int], None] | None = None) -> Mesh:
@@ -626,6 +628,7 @@ class FlowSolver:
 # functional API
 # --------------------------------------------------------------------------
 
+@kernels.with_small_pages
 def flow(mesh: Mesh, lam: float, *, lam_border: float = 0.0, iterations: int = 1,
          normalized: bool = True, weights=None, invert_weights: bool = False,
          preserve_volume: bool = False, axes: Sequence[bool] | str = (True, True, True),

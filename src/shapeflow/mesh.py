@@ -440,6 +440,7 @@ class Mesh:
 
     __slots__ = ("_vertices", "_topology", "_attributes", "__dict__")
 
+    @kernels.with_small_pages
     def __init__(self, vertices, faces, *, weights=None, attributes: Mapping | None = None,
                  _csr: tuple[np.ndarray, np.ndarray] | None = None,
                  _topology: Topology | None = None):

@@ -494,6 +494,7 @@ def _assemble(mesh, scheme: str, thresholds: str, vertices: np.ndarray | None = 
     return st, pw, deg, ring, locked, n_bad
 
 
+@kernels.with_small_pages
 def cotan_weights(mesh, scheme: str = "tqlbo", *, thresholds: str = "relative") -> CotanWeights:
     """Cotangent weights W and ring areas of a hybrid mesh.
 
@@ -529,6 +530,7 @@ def cotan_weights(mesh, scheme: str = "tqlbo", *, thresholds: str = "relative") 
                         pairs=st.pairs, pair_weights=pw, scheme=scheme)
 
 
+@kernels.with_small_pages
 def laplacian(mesh, normalized: bool = True, scheme: str = "tqlbo", *, thresholds: str = "relative") -> sp.csr_matrix:
     """The TQLBO Laplacian as a sparse matrix (positive semi-definite convention).
 

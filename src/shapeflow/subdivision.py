@@ -77,6 +77,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from . import kernels
 from .errors import ParameterError
 from .mesh import WEIGHT, Mesh, Topology
 
@@ -415,6 +416,7 @@ def _levels(mesh, levels, schemes, boundary, edge_order, threads, factored=False
         t = child
 
 
+@kernels.with_small_pages
 def subdivision_matrix(mesh, *, levels: int = 1, scheme: str = "catmull-clark",
                        boundary: str = "smooth", edge_order: str = "blender",
                        blender_threads: int = 1) -> tuple[sp.csr_matrix, Topology]:
@@ -472,6 +474,7 @@ def subdivision_matrix(mesh, *, levels: int = 1, scheme: str = "catmull-clark",
     return S.tocsr(), topo
 
 
+@kernels.with_small_pages
 def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
               boundary: str = "smooth", weights_rule: str = "linear",
               edge_order: str = "blender", blender_threads: int = 1) -> Mesh:

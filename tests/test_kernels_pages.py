@@ -1,0 +1,93 @@
+"""``kernels.small_pages``: NumPy's huge-page hint is off inside shapeflow's heavy calls, and restored.
+
+Independent of numba (the switch is NumPy's), so not skipped with the kernels.
+"""
+
+from __future__ import annotations
+
+import threading
+
+import numpy as np
+import pytest
+
+import shapeflow as sf
+from shapeflow import kernels
+
+import meshgen
+
+setter = kernels._madvise_setter()
+pytestmark = pytest.mark.skipif(setter is None, reason="this NumPy has no huge-page switch")
+
+
+def hint() -> bool:
+    """NumPy's current setting (read by setting and restoring it)."""
+    old = setter(False)
+    setter(old)
+    return bool(old)
+
+
+@pytest.fixture(autouse=True)
+def numpy_default():
+    old = setter(True)
+    yield
+    setter(old)
+
+
+def test_off_inside_restored_after():
+    with kernels.small_pages():
+        assert hint() is False
+        with kernels.small_pages():      # re-entrant
+            assert hint() is False
+        assert hint() is False
+    assert hint() is True
+    setter(False)                        # a caller's own choice is restored, not overwritten with True
+    with kernels.small_pages():
+        assert hint() is False
+    assert hint() is False
+
+
+def test_restored_after_an_exception():
+    with pytest.raises(sf.MeshError):
+        sf.Mesh([[0.0, 0.0, 0.0]], [[0, 1, 2]])          # validation fails inside Mesh.__init__
+    assert hint() is True
+
+
+def test_flow_runs_without_the_hint():
+    m = meshgen.grid(6, 5, z=lambda x, y: 0.2 * x * y)
+    seen = []
+    sf.flow(m, 0.5, iterations=2, progress=lambda i, n: seen.append(hint()))
+    assert seen and not any(seen)
+    assert hint() is True
+
+
+def test_interleaved_threads_restore_the_setting():
+    """Thread A enters, B enters, A leaves, B leaves: off until the last one leaves."""
+    a_in, b_in, a_out = threading.Event(), threading.Event(), threading.Event()
+    during = []
+
+    def a():
+        with kernels.small_pages():
+            a_in.set()
+            b_in.wait(5)
+        a_out.set()
+
+    def b():
+        a_in.wait(5)
+        with kernels.small_pages():
+            b_in.set()
+            a_out.wait(5)
+            during.append(hint())
+
+    ts = [threading.Thread(target=a), threading.Thread(target=b)]
+    for t in ts:
+        t.start()
+    for t in ts:
+        t.join(10)
+    assert during == [False]
+    assert hint() is True
+
+
+def test_environment_switch_keeps_numpy_default(monkeypatch):
+    monkeypatch.setitem(kernels._pages, "keep_huge", True)
+    with kernels.small_pages():
+        assert hint() is True
