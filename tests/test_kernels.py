@@ -105,6 +105,61 @@ def test_repeated_vertex_found(forced):
         sf.Mesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3, 2]])
 
 
+def _broken_layouts():
+    """(name, sizes, indices) on a 30 x 30 grid's quads, each broken in one or two faces."""
+    g = meshgen.grid(30, 30, mix=0.3, seed=2)
+    S, I, O = g.face_sizes.copy(), g.face_indices.copy(), g.topology.face_offsets
+    m = S.size
+    out = [("valid", S, I)]
+    for f in (0, m // 2, m - 1):            # first, middle and last face: the search is split by threads
+        J = I.copy()
+        J[O[f] + 1] = J[O[f]]
+        out.append((f"repeat {f}", S, J))
+        J = I.copy()
+        J[O[f] + 2] = g.n_vertices
+        out.append((f"too large {f}", S, J))
+        J = I.copy()
+        J[O[f]] = -1
+        out.append((f"negative {f}", S, J))
+    # a two-corner face early and an out-of-range vertex earlier still: the size message comes first
+    S2 = np.concatenate([S[:5], [2], S[5:]])
+    J = np.concatenate([I[:O[5]], [0, 1], I[O[5]:]])
+    J[0] = g.n_vertices + 7
+    out.append(("short face after a bad vertex", S2, J))
+    return g.vertices, out
+
+
+def test_validation_same_verdict_and_message():
+    """The compiled one-pass check (fast path) changes no verdict and no message."""
+    V, cases = _broken_layouts()
+
+    def verdict(S, I):
+        try:
+            sf.Mesh.from_csr(V, S, I)
+        except sf.MeshError as e:
+            return str(e)
+        return None
+
+    for name, S, I in cases:
+        with kernels.enabled(False):
+            slow = verdict(S, I)
+        old = kernels.MIN_SIZE
+        kernels.MIN_SIZE = 0
+        try:
+            fast = verdict(S, I)
+        finally:
+            kernels.MIN_SIZE = old
+        assert (slow is None) == (name == "valid"), name
+        assert fast == slow, name
+    from shapeflow import _numba_kernels as NK
+    for name, S, I in cases:
+        offsets = np.concatenate([[0], np.cumsum(S)])
+        f = NK.first_bad_face(I.astype(np.int64), offsets, V.shape[0])
+        assert (f < 0) == (name == "valid"), name
+        if name.split()[-1].isdigit():
+            assert f == int(name.split()[-1]), name
+
+
 @pytest.mark.parametrize("lam", [1.0, -20.0])
 @pytest.mark.parametrize("name,mesh", MESHES[:4], ids=[n for n, _ in MESHES[:4]])
 def test_flow_same_result(name, mesh, lam, forced):

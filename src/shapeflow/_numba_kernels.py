@@ -19,7 +19,7 @@ assembly ~25%).  Only indices that cannot be negative are cast.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import get_num_threads, njit, prange
 
 
 def _zeros(shape, dtype=np.float64):
@@ -166,29 +166,33 @@ def edge_data(fi, offsets, n):
 
     Half-edges are bucketed by their low vertex (counting sort, stable in
     corner order), then each small bucket is insertion-sorted by the high
-    vertex (stable), which is the order of a stable argsort of lo·n + hi.
-    Walks the faces (``offsets``), so the corner_next array is not needed.
+    vertex (stable), which is the order of a stable argsort of lo·n + hi;
+    edges are numbered bucket by bucket.  Walks the faces (``offsets``), so
+    the corner_next array is not needed.  The bucketing runs on all threads,
+    each placing the half-edges of its own range of low vertices.
     """
     c = fi.size
     vt = np.int32 if n < 2**31 - 1 else np.int64
     lo = np.empty(c, vt)
     hi = np.empty(c, vt)
     order = np.empty(c, np.int64)
-    corner_edge = np.empty(c, np.int64)
-    starts = np.empty(c + 1, np.int64)
-    n_e = _edge_data(fi, offsets, n, lo, hi, order, corner_edge, starts, _zeros(n + 1, np.int64),
-                     np.empty(n, np.int64))
-    firsts = order[starts[:n_e]]
+    start = _zeros(n + 1, np.int64)
+    ucount = np.empty(n + 1, np.int64)
+    n_e = _edge_sort(fi, offsets, n, lo, hi, order, start, ucount, get_num_threads())
     edges = np.empty((n_e, 2), np.int64)
-    edges[:, 0] = lo[firsts]
-    edges[:, 1] = hi[firsts]
-    return edges, corner_edge, starts[:n_e + 1].copy(), order
+    starts = np.empty(n_e + 1, np.int64)
+    corner_edge = np.empty(c, np.int64)
+    _edge_number(n, hi, order, start, ucount, corner_edge, starts, edges)
+    return edges, corner_edge, starts, order
 
 
 @njit(parallel=True, cache=True)
-def _edge_data(fi, offsets, n, lo, hi, order, corner_edge, starts, start, fill):
+def _edge_sort(fi, offsets, n, lo, hi, order, start, ucount, nt):
+    """Buckets of half-edges by low vertex, sorted by high vertex; returns the number of edges
+    (``ucount[v]`` = edges of the buckets before v)."""
     c = fi.size
-    for f in range(offsets.size - 1):
+    m = offsets.size - 1
+    for f in prange(m):
         o = offsets[f]
         e = offsets[f + 1]
         for k in range(o, e):
@@ -200,15 +204,28 @@ def _edge_data(fi, offsets, n, lo, hi, order, corner_edge, starts, start, fill):
             else:
                 lo[k] = b
                 hi[k] = a
-            start[np.uint64(lo[k] + 1)] += 1
+    # thread t counts and places the half-edges whose low end lies in its range [v0, v1),
+    # scanning all corners in order (so every bucket stays in corner order)
+    for t in prange(nt):
+        v0 = t * n // nt
+        w = np.uint64((t + 1) * n // nt - v0)
+        for k in range(c):
+            a = lo[k]
+            if np.uint64(a - v0) < w:
+                start[np.uint64(a + 1)] += 1
     for v in range(n):
         start[v + 1] += start[v]
-    fill[:] = start[:-1]
-    for k in range(c):
-        v = np.uint64(lo[k])
-        order[np.uint64(fill[v])] = k
-        fill[v] += 1
-    # insertion sort of each bucket by hi (stable); buckets are independent
+    for t in prange(nt):
+        v0 = t * n // nt
+        v1 = (t + 1) * n // nt
+        w = np.uint64(v1 - v0)
+        fill = start[v0:v1].copy()
+        for k in range(c):
+            j = np.uint64(lo[k] - v0)
+            if j < w:
+                order[np.uint64(fill[j])] = k
+                fill[j] += 1
+    # insertion sort of each bucket by hi (stable), then its number of distinct edges
     for v in prange(n):
         s = start[v]
         e = start[v + 1]
@@ -220,34 +237,73 @@ def _edge_data(fi, offsets, n, lo, hi, order, corner_edge, starts, start, fill):
                 order[r + 1] = order[r]
                 r -= 1
             order[r + 1] = k
-    n_e = 0
-    prev_lo = -1
-    prev_hi = -1
-    for q in range(c):
-        k = np.uint64(order[q])
-        if lo[k] != prev_lo or hi[k] != prev_hi:
-            starts[n_e] = q
-            n_e += 1
-            prev_lo = lo[k]
-            prev_hi = hi[k]
-        corner_edge[k] = n_e - 1
-    starts[n_e] = c
-    return n_e
+        u = 0
+        prev = -1
+        for q in range(s, e):
+            h = hi[np.uint64(order[q])]
+            if h != prev:
+                u += 1
+                prev = h
+        ucount[v + 1] = u
+    ucount[0] = 0
+    for v in range(n):
+        ucount[v + 1] += ucount[v]
+    return ucount[n]
 
 
-@njit(cache=True)
-def first_repeated_vertex_face(fi, offsets):
-    """Index of the first face that lists a vertex twice, or -1."""
+@njit(parallel=True, cache=True)
+def _edge_number(n, hi, order, start, ucount, corner_edge, starts, edges):
+    """Edge ids bucket by bucket: the edges (low, high), where each edge's corners start, each corner's edge."""
+    for v in prange(n):
+        s = start[v]
+        e = start[v + 1]
+        eid = ucount[v] - 1
+        prev = -1
+        for q in range(s, e):
+            k = np.uint64(order[q])
+            h = hi[k]
+            if h != prev:
+                eid += 1
+                prev = h
+                starts[eid] = q
+                edges[eid, 0] = v
+                edges[eid, 1] = h
+            corner_edge[k] = eid
+    starts[starts.size - 1] = order.size
+
+
+def first_bad_face(fi, offsets, n):
+    """Index of the first face with fewer than 3 corners, a vertex outside [0, n) or a vertex
+    listed twice; -1 if none.  ``Mesh`` validation's fast path (the messages come from the
+    NumPy checks, run only when this finds something)."""
+    return int(_first_bad_face(fi, offsets, n, get_num_threads()))
+
+
+@njit(parallel=True, cache=True)
+def _first_bad_face(fi, offsets, n, nt):
     m = offsets.size - 1
-    for f in range(m):
-        s = offsets[f]
-        e = offsets[f + 1]
-        for a in range(s, e):
-            va = fi[a]
-            for b in range(a + 1, e):
-                if fi[b] == va:
-                    return f
-    return -1
+    first = np.full(nt, m)
+    for t in prange(nt):              # each thread scans its range of faces up to its first bad one
+        f0 = t * m // nt
+        f1 = (t + 1) * m // nt
+        for f in range(f0, f1):
+            s = offsets[f]
+            e = offsets[f + 1]
+            bad = e - s < 3
+            for a in range(s, e):
+                va = fi[a]
+                if va < 0 or va >= n:
+                    bad = True
+                for b in range(a + 1, e):
+                    if fi[b] == va:
+                        bad = True
+            if bad:
+                first[t] = f
+                break
+    best = m
+    for t in range(nt):
+        best = min(best, first[t])
+    return best if best < m else -1
 
 
 # --------------------------------------------------------------------------
