@@ -224,6 +224,11 @@ def test_cg_kernel_columns(forced):
         assert x.shape == B.shape
         np.testing.assert_allclose(x, y, atol=1e-9 * np.abs(y).max())
         np.testing.assert_allclose(A @ x, B, atol=1e-8 * np.abs(B).max())
+        scratch = np.ascontiguousarray(B.copy())            # B as the residual's storage: same answer
+        z = SPDSolver(A, "cg", rtol=1e-12).solve(scratch, overwrite_b=True)
+        np.testing.assert_array_equal(z, x)
+        if k == 3:
+            assert not np.array_equal(scratch, B)          # it was used (holds the last residual)
 
 
 def test_small_meshes_do_not_use_kernels():

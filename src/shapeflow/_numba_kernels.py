@@ -107,27 +107,31 @@ def _update_p(P, R, minv, beta):
         P[i, 2] = R[i, 2] * m + b2 * P[i, 2]
 
 
-def pcg3(indptr, indices, data, minv, B, X, rtol, maxiter):
+def pcg3(indptr, indices, data, minv, B, X, rtol, maxiter, overwrite_b=False):
     """Jacobi-PCG on the columns of B (n, 3), X (n, 3) warm start, updated in place.
 
     Same algorithm and stopping rule as ``SPDSolver._cg``: a column stops
     (α = 0, β = 1) once its preconditioned residual norm fell below ``rtol`` ×
-    its initial value.  Returns the iteration count.
+    its initial value.  Returns the iteration count.  ``overwrite_b``: B
+    becomes the residual's storage (one (n, 3) array less to allocate).
     """
-    work = _zeros((3, B.shape[0], 3))   # first touched here, not from both threads inside the loops
-    return _pcg3(indptr, indices, data, minv, B, X, rtol, maxiter, work[0], work[1], work[2])
+    # first touched here, not from both threads inside the loops
+    work = _zeros((2 if overwrite_b else 3, B.shape[0], 3))
+    R = B if overwrite_b else work[2]
+    return _pcg3(indptr, indices, data, minv, B, X, rtol, maxiter, work[0], work[1], R)
 
 
 @njit(cache=True)
 def _pcg3(indptr, indices, data, minv, B, X, rtol, maxiter, P, AP, R):
+    """R may be B itself: B is read once, before R is written."""
     n = B.shape[0]
     k = 3
-    _spmm_dot(indptr, indices, data, X, R, k)
+    _spmm_dot(indptr, indices, data, X, AP, k)
     rz = np.zeros(3)
     for i in range(n):
         m = minv[i]
         for c in range(3):
-            r = B[i, c] - R[i, c]
+            r = B[i, c] - AP[i, c]
             R[i, c] = r
             P[i, c] = r * m
             rz[c] += r * r * m
@@ -607,20 +611,20 @@ def _pair_pattern(pairs, n, indptr, indices, tag, pos_upper, pos_lower, pos_diag
                 pos_diag[np.uint64(t - 2 * P)] = q
 
 
-def structure_core(fi, offsets, corner_edge, edges):
+def structure_core(fi, offsets, corner_edge, edges, n):
     """Chord pairs and skip pairs of ``operators._Structure``.
 
     For meshes without tqlbo fan triangles (triangles and quads, or any
     polygon with the Blender scheme).  Returns skip_pair (int32 when the
-    pairs allow) and pairs = edges followed by the primary chords, in the
-    order of the NumPy code.  (The corner weights depend on the face size
+    pairs allow) and pairs (int32 when the n vertices allow) = edges followed
+    by the primary chords, in the order of the NumPy code.  (The corner weights depend on the face size
     only; ``assemble_corners`` computes them on the fly.)
     """
     sizes = np.diff(offsets)
     n_edges = edges.shape[0]
     n_primary = 2 * int(np.count_nonzero(sizes == 4)) + int(sizes[sizes > 4].sum())
     P = n_edges + n_primary
-    pairs = np.empty((P, 2), np.int64)
+    pairs = np.empty((P, 2), np.int32 if n < 2**31 - 1 else np.int64)   # int32: half the bytes
     pairs[:n_edges] = edges
     skip_pair = np.empty(fi.size, np.int32 if P < 2**31 - 1 else np.int64)
     _structure_core(fi, offsets, corner_edge, n_edges, pairs, skip_pair)

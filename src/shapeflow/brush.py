@@ -846,7 +846,7 @@ class Brush(_BrushBase):
         E = t.n_edges
         # unique vertex pairs: the operator's pair list may repeat a chord (once per
         # contribution); here every pair of vertices has one id
-        keys = st.pairs[:, 0] * np.int64(n) + st.pairs[:, 1]
+        keys = st.pairs[:, 0].astype(np.int64) * n + st.pairs[:, 1]   # pairs may be int32
         ukeys, uinv = np.unique(keys, return_inverse=True)
         P = ukeys.size
         upairs = np.stack([ukeys // n, ukeys % n], axis=1)

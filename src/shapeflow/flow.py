@@ -411,7 +411,7 @@ class FlowSolver:
                 lr = bsys.local[r]
                 for k in range(3):
                     rhs[:, k] += np.bincount(lr, e * V[s, k], minlength=bsys.idx.size)
-            X[bsys.idx] = bsys.solver.solve(rhs, V[bsys.idx])
+            X[bsys.idx] = bsys.solver.solve(rhs, V[bsys.idx], overwrite_b=True)
         return X
 
     def _step(self, V: np.ndarray, lam: float, lam_b: float, isys: _System | None,
@@ -425,7 +425,7 @@ class FlowSolver:
             if r.size:
                 for k in range(3):
                     rhs[:, k] += np.bincount(r, e * X[s, k], minlength=V.shape[0])
-            Xi = isys.solver.solve(rhs, X)
+            Xi = isys.solver.solve(rhs, X, overwrite_b=True)   # rhs is ours: the CG's residual
             if isys.solver.method == "cg":
                 report.cg_iterations.append(isys.solver.stats.iterations)
             Xi[held] = X[held]                 # exactly, not to the solver's tolerance

@@ -149,7 +149,7 @@ class _Structure:
         K = kernels.get(n)
         if K is not None and (scheme == "blender" or sizes.size == 0 or int(sizes.max()) <= 4):
             # no fan triangles: the compiled twin of the code below (corner weights made on demand)
-            self.skip_pair, pairs = K.structure_core(fi, offs, corner_edge, edges)
+            self.skip_pair, pairs = K.structure_core(fi, offs, corner_edge, edges, n)
             self.extra_tris = np.zeros((0, 3), np.int64)
             self.extra_w = np.zeros(0)
             self.extra_face = np.zeros(0, np.int64)
@@ -260,6 +260,8 @@ class _Structure:
             k_ = xk[xmask]
             chord_ends.append(np.stack([k_ // n, k_ % n], axis=1))
         pairs = np.concatenate([edges] + chord_ends)
+        if n < 2**31 - 1:
+            pairs = pairs.astype(np.int32)   # as the compiled twin: half the bytes
         skip_pair = np.full(c, -1, dtype=np.int64)
         skip_pair[primary] = n_edges + np.arange(n_primary)
         sec = ch[(cs[ch] == 4) & (local[ch] >= 2)]

@@ -105,11 +105,13 @@ class SPDSolver:
         else:
             self._minv = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 1.0)
 
-    def solve(self, B: np.ndarray, X0: np.ndarray | None = None) -> np.ndarray:
+    def solve(self, B: np.ndarray, X0: np.ndarray | None = None, *, overwrite_b: bool = False) -> np.ndarray:
+        """X with A X = B; ``X0`` a starting guess (CG).  ``overwrite_b``: B may serve as
+        scratch space (its values are then undefined), which saves an allocation."""
         B = np.ascontiguousarray(B, dtype=np.float64)
         self.stats.solves += 1
         if self.method == "cg":
-            return self._cg(B, X0)
+            return self._cg(B, X0, overwrite_b)
         if self._factor is None:
             self._factorize()
         if self.method == "cholesky":
@@ -133,7 +135,7 @@ class SPDSolver:
 
             self._factor = splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A")
 
-    def _cg(self, B: np.ndarray, X0: np.ndarray | None) -> np.ndarray:
+    def _cg(self, B: np.ndarray, X0: np.ndarray | None, overwrite_b: bool = False) -> np.ndarray:
         """Jacobi-PCG on all columns at once.
 
         Stops when every column's preconditioned residual norm sqrt(rᵀM⁻¹r)
@@ -147,7 +149,7 @@ class SPDSolver:
         K = kernels.get(n)
         if K is not None and (1 if squeeze else B.shape[1]) <= 3 and A.indices.dtype == np.int32 \
                 and A.indptr.dtype == np.int32:
-            return self._cg_kernel(K, B, X0, squeeze)
+            return self._cg_kernel(K, B, X0, squeeze, overwrite_b)
         Bt = np.ascontiguousarray((B[:, None] if squeeze else B).T)
         k = Bt.shape[0]
         if X0 is None:
@@ -194,7 +196,8 @@ class SPDSolver:
     def _maxiter(self, n: int) -> int:
         return self.maxiter or max(200, 10 * int(np.sqrt(n)) + 100)
 
-    def _cg_kernel(self, K, B: np.ndarray, X0: np.ndarray | None, squeeze: bool) -> np.ndarray:
+    def _cg_kernel(self, K, B: np.ndarray, X0: np.ndarray | None, squeeze: bool,
+                   overwrite_b: bool = False) -> np.ndarray:
         """The same Jacobi-PCG as :meth:`_cg`, compiled (both cores), (n, 3) layout."""
         A = self.A
         n = A.shape[0]
@@ -210,7 +213,7 @@ class SPDSolver:
                 X[:, :k] = np.asarray(X0, dtype=np.float64).reshape(n, k)
         data = np.ascontiguousarray(A.data, dtype=np.float64)
         self.stats.iterations = int(K.pcg3(A.indptr, A.indices, data, self._minv, B3, X, self.rtol,
-                                           self._maxiter(n)))
+                                           self._maxiter(n), overwrite_b=overwrite_b or B3 is not B))
         _check_finite(X)
         return X[:, 0].copy() if squeeze else (X if k == 3 else X[:, :k].copy())
 
