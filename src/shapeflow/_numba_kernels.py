@@ -559,35 +559,45 @@ def pair_pattern(pairs, n):
     pos_upper = np.empty(P, np.int32)
     pos_lower = np.empty(P, np.int32)
     pos_diag = np.empty(n, np.int32)
-    _pair_pattern(pairs, n, indptr, indices, tag, pos_upper, pos_lower, pos_diag, np.empty(n, np.int32))
+    _pair_pattern(pairs, n, indptr, indices, tag, pos_upper, pos_lower, pos_diag, np.empty(n, np.int32),
+                  get_num_threads())
     return indptr, indices, pos_upper, pos_lower, pos_diag
 
 
 @njit(parallel=True, cache=True)
-def _pair_pattern(pairs, n, indptr, indices, tag, pos_upper, pos_lower, pos_diag, fill):
+def _pair_pattern(pairs, n, indptr, indices, tag, pos_upper, pos_lower, pos_diag, fill, nt):
     P = pairs.shape[0]
     for p in range(P):
         indptr[np.uint64(pairs[p, 0] + 1)] += 1
         indptr[np.uint64(pairs[p, 1] + 1)] += 1
     for i in range(n):
         indptr[i + 1] += indptr[i] + 1
-    fill[:] = indptr[:-1]
-    for p in range(P):
-        r = np.uint64(pairs[p, 0])
-        q = fill[r]
-        indices[np.uint64(q)] = pairs[p, 1]
-        tag[np.uint64(q)] = p
-        fill[r] = q + 1
-    for p in range(P):
-        r = np.uint64(pairs[p, 1])
-        q = fill[r]
-        indices[np.uint64(q)] = pairs[p, 0]
-        tag[np.uint64(q)] = P + p
-        fill[r] = q + 1
-    for i in range(n):
-        q = fill[i]
-        indices[q] = i
-        tag[q] = 2 * P + i
+    # thread t places the entries of its rows [v0, v1), scanning all pairs in order
+    # (upper entries, then lower entries, then the diagonal: the entry order of the NumPy code)
+    for t in prange(nt):
+        v0 = t * n // nt
+        v1 = (t + 1) * n // nt
+        w = np.uint64(v1 - v0)
+        for i in range(v0, v1):
+            fill[i] = indptr[i]
+        for p in range(P):
+            r = pairs[p, 0]
+            if np.uint64(r - v0) < w:
+                q = fill[np.uint64(r)]
+                indices[np.uint64(q)] = pairs[p, 1]
+                tag[np.uint64(q)] = p
+                fill[np.uint64(r)] = q + 1
+        for p in range(P):
+            r = pairs[p, 1]
+            if np.uint64(r - v0) < w:
+                q = fill[np.uint64(r)]
+                indices[np.uint64(q)] = pairs[p, 0]
+                tag[np.uint64(q)] = P + p
+                fill[np.uint64(r)] = q + 1
+        for i in range(v0, v1):
+            q = fill[i]
+            indices[q] = i
+            tag[q] = 2 * P + i
     for i in prange(n):   # rows are independent: sort, then record where each entry went
         s = indptr[i]
         e = indptr[i + 1]
