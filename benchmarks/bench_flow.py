@@ -30,13 +30,22 @@ sys.path.insert(0, str(HERE))
 import shapeflow as sf  # noqa: E402
 
 
+LAST_TIMES: list = []   # the runs behind the last median_time (for the spread)
+
+
 def median_time(fn, repeat: int) -> tuple[float, object]:
     times, out = [], None
     for _ in range(repeat):
         t0 = time.perf_counter()
         out = fn()
         times.append(time.perf_counter() - t0)
+    LAST_TIMES[:] = times
     return statistics.median(times), out
+
+
+def spread() -> str:
+    """Fastest and slowest of the last median_time's runs (the machine is shared and noisy)."""
+    return f"(runs {min(LAST_TIMES) * 1e3:.0f}-{max(LAST_TIMES) * 1e3:.0f} ms)"
 
 
 def suzanne_sub4():
@@ -106,7 +115,7 @@ def child_million(repeat: int) -> dict:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--repeat", type=int, default=11)
     ap.add_argument("--quick", action="store_true", help="skip the 1M-vertex case and Blender")
     ap.add_argument("--no-blender", action="store_true")
     ap.add_argument("--child-million", action="store_true", help=argparse.SUPPRESS)
@@ -125,11 +134,12 @@ def main(argv=None) -> int:
         print(f"  {label:<52s} {seconds * 1e3:9.1f} ms  {extra}")
 
     t_fresh, out = median_time(lambda: sf.flow(sf.Mesh.from_csr(V, S, I), 1.0), R)
-    row("flow λ=1, 1 iteration, fresh mesh (all included)", t_fresh, f"[{out.report.solver}, CG {out.report.cg_iterations}]")
+    row("flow λ=1, 1 iteration, fresh mesh (all included)", t_fresh,
+        f"[{out.report.solver}, CG {out.report.cg_iterations}] {spread()}")
     warm = sf.Mesh.from_csr(V, S, I)
     sf.flow(warm, 1.0)
     t_warm, out = median_time(lambda: sf.flow(warm, 1.0), R)
-    row("flow λ=1, 1 iteration, warm topology", t_warm)
+    row("flow λ=1, 1 iteration, warm topology", t_warm, spread())
     t10, out10 = median_time(lambda: sf.flow(warm, 1.0, iterations=10), R)
     row("flow λ=1, 10 iterations (fixed operator), warm", t10, f"= {t10 / t_warm:.2f}x one iteration [{out10.report.solver}]")
     for lam in (-10.0, -100.0):

@@ -276,3 +276,29 @@ def test_cached_pattern_survives_user_facing_calls():
         sf.vertex_areas(m, "mixed")
     np.testing.assert_array_equal(sf.flow(m, -5.0).vertices, before)
     np.testing.assert_array_equal(sf.flow(fresh, -5.0).vertices, before)
+
+
+@pytest.mark.parametrize("use", ["cotan_weights", "flow", "brush"])
+def test_no_reference_cycle_keeps_a_mesh_alive(use):
+    """Operator structures are cached on the topology: they must not point back to it, or every
+    fresh mesh would wait for the cyclic garbage collector (memory piled up between its runs)."""
+    import gc
+    import weakref
+
+    m0 = cube_sphere(6)
+    was = gc.isenabled()
+    gc.disable()
+    try:
+        m = sf.Mesh.from_csr(m0.vertices, m0.face_sizes, m0.face_indices)
+        if use == "cotan_weights":
+            sf.cotan_weights(m)
+        elif use == "flow":
+            sf.flow(m, 1.0, iterations=2)
+        else:
+            sf.Brush(m, radius=0.5).dab(m.vertices[0])
+        ref = weakref.ref(m.topology)
+        del m
+        assert ref() is None
+    finally:
+        if was:
+            gc.enable()

@@ -43,6 +43,7 @@ epsilon).  No NaN or inf ever reaches W.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -143,7 +144,9 @@ class _Structure:
         fi = topo.face_indices
         corner_edge = topo.corner_edge
         edges = topo.edges
-        self._topo = topo
+        # a weak reference: the topology caches this structure, and a strong one would make a
+        # cycle that only the cyclic garbage collector frees (fresh meshes piled up between its runs)
+        self._topo_ref = weakref.ref(topo)
         self.scheme = scheme
         self._corner_w = None
         K = kernels.get(n)
@@ -180,6 +183,13 @@ class _Structure:
         indices.flags.writeable = False
         self.indptr = indptr
         self.indices = indices
+
+    @property
+    def _topo(self):
+        topo = self._topo_ref()
+        if topo is None:
+            raise RuntimeError("the topology of this operator structure no longer exists")
+        return topo
 
     @property
     def nxt(self) -> np.ndarray:
