@@ -663,18 +663,40 @@ def _structure_core(fi, offsets, corner_edge, n_edges, pairs, skip_pair):
                 cnt += 1
 
 
-@njit(cache=True)
 def scaled_abs_row_max(indptr, indices, data, s):
     """max over rows with s_i > 0 of s_i Σ_j |a_ij| s_j (a Gershgorin bound of SAS)."""
-    best = 0.0
-    for i in range(indptr.size - 1):
-        si = s[i]
-        if si > 0.0:
-            acc = 0.0
-            for q in range(indptr[i], indptr[i + 1]):
-                acc += abs(data[q]) * s[indices[q]]
-            best = max(best, si * acc)
-    return best
+    return float(_scaled_abs_row_max(indptr, indices, data, s, get_num_threads()))
+
+
+@njit(parallel=True, cache=True)
+def _scaled_abs_row_max(indptr, indices, data, s, nt):
+    n = indptr.size - 1
+    part = np.zeros(nt)
+    for t in prange(nt):            # each thread its range of rows; the max of maxima is exact
+        best = 0.0
+        for i in range(t * n // nt, (t + 1) * n // nt):
+            si = s[i]
+            if si > 0.0:
+                acc = 0.0
+                for q in range(indptr[i], indptr[i + 1]):
+                    acc += abs(data[q]) * s[np.uint64(indices[q])]
+                best = max(best, si * acc)
+        part[t] = best
+    return part.max()
+
+
+@njit(cache=True)
+def weighted_col_norms2(c, X):
+    """Σ_i c_i X_ij² for the three columns of X (n, 3), in row order."""
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    for i in range(X.shape[0]):
+        ci = c[i]
+        s0 += ci * X[i, 0] * X[i, 0]
+        s1 += ci * X[i, 1] * X[i, 1]
+        s2 += ci * X[i, 2] * X[i, 2]
+    return np.array([s0, s1, s2])
 
 
 @njit(parallel=True, cache=True, fastmath=False)

@@ -502,14 +502,16 @@ class FlowSolver:
         r, s_, e = isys.coupling
         n = V.shape[0]
         cols = np.flatnonzero(axes)
-        moving = free[:, None] & axes[None, :]          # (n, 3): entries the steps may change
+        # entries the steps may change: (n, 1) when every axis moves, else (n, 3)
+        moving = free[:, None] if axes.all() else free[:, None] & axes[None, :]
         X0 = np.where(moving, V, 0.0)
         G = np.zeros((n, 3))
         if r.size:
             for q in cols:
                 G[:, q] = np.bincount(r, e * V[s_, q], minlength=n)
         c_full = np.where(free, isys.c, 0.0)
-        Y, degree = chebyshev_steps(A, c_full, X0, G, lo, hi, (cu, tu), (ch, th), self.rtol, need, steps=k)
+        Y, degree = chebyshev_steps(A, c_full, X0, G, lo, hi, (cu, tu), (ch, th), self.rtol, need, steps=k,
+                                    overwrite_g=True)
         if Y is None or not np.all(np.isfinite(Y)):
             return None
         out = np.where(moving, Y, V)

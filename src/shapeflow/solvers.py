@@ -250,7 +250,7 @@ def chebyshev_coefficients(f, a: float, b: float, max_degree: int = 2048):
 
 
 def chebyshev_steps(A: sp.csr_matrix, c: np.ndarray, X0: np.ndarray, G: np.ndarray, a: float, b: float,
-                    coef_u, coef_h, rtol: float, max_degree: int, steps: int = 1):
+                    coef_u, coef_h, rtol: float, max_degree: int, steps: int = 1, overwrite_g: bool = False):
     """X = f_u(C⁻¹A) X0 + f_h(C⁻¹A) C⁻¹G by Clenshaw's recurrence on three columns.
 
     ``A`` is symmetric with ``A − C`` positive semi-definite on the rows where
@@ -271,6 +271,7 @@ def chebyshev_steps(A: sp.csr_matrix, c: np.ndarray, X0: np.ndarray, G: np.ndarr
     bound is then checked against the X − X0 found; if the estimate was too
     large the sum is evaluated once more at the degree the check asks for.
     Returns (X, degree), or (None, degree) if more than ``max_degree`` is needed.
+    ``overwrite_g``: G (n, 3) float64 C-contiguous may be reused as storage.
     """
     n = A.shape[0]
     cu, tu = coef_u
@@ -278,13 +279,23 @@ def chebyshev_steps(A: sp.csr_matrix, c: np.ndarray, X0: np.ndarray, G: np.ndarr
     m = min(cu.size, ch.size, max_degree + 1)
     cinv = np.divide(1.0, c, out=np.zeros_like(c), where=c > 0)
     X0 = np.ascontiguousarray(X0, dtype=np.float64)
-    H0 = np.ascontiguousarray(G * cinv[:, None])
-    nu = np.sqrt(np.einsum("i,ij,ij->j", c, X0, X0))
-    nh = np.sqrt(np.einsum("i,ij,ij->j", c, H0, H0))
-    bounds = tu[:m, None] * nu + th[:m, None] * nh            # (m, 3): bound after degree j
-    alpha, beta = 2.0 / (b - a), (a + b) / (b - a)
     K = kernels.get(n)
     use_k = K is not None and A.indices.dtype == np.int32 and A.indptr.dtype == np.int32
+    if overwrite_g and G.dtype == np.float64 and G.flags.c_contiguous and G.shape == X0.shape:
+        H0 = np.multiply(G, cinv[:, None], out=G)
+    else:
+        H0 = np.ascontiguousarray(G * cinv[:, None])
+
+    def cnorm(Y):
+        """The C-weighted norm of each column."""
+        if use_k and Y.shape[1] == 3 and Y.flags.c_contiguous:
+            return np.sqrt(K.weighted_col_norms2(c, Y))
+        return np.sqrt(np.einsum("i,ij,ij->j", c, Y, Y))
+
+    nu = cnorm(X0)
+    nh = cnorm(H0)
+    bounds = tu[:m, None] * nu + th[:m, None] * nh            # (m, 3): bound after degree j
+    alpha, beta = 2.0 / (b - a), (a + b) / (b - a)
     data = np.ascontiguousarray(A.data, dtype=np.float64)
 
     def step(B1, B2, f, cuj, chj):
@@ -313,15 +324,14 @@ def chebyshev_steps(A: sp.csr_matrix, c: np.ndarray, X0: np.ndarray, G: np.ndarr
     # one step with f = −1/α (f·ÃX0 = −C⁻¹A X0 + (β/α) X0)
     E = np.zeros_like(X0)
     step(X0, E, -1.0 / alpha, 1.0 - beta / alpha, 1.0)
-    d_est = np.sqrt(np.einsum("i,ij,ij->j", c, E, E) * max(steps, 1))
+    d_est = cnorm(E) * np.sqrt(max(steps, 1))
     floor = 1e-15 * (nu + nh)
     N = degree_for(np.maximum(rtol * d_est, floor))
     tried = set()
     while N is not None and N not in tried:
         tried.add(N)
         Y = evaluate(max(N, 1))
-        D = Y - X0
-        change = np.sqrt(np.einsum("i,ij,ij->j", c, D, D))
+        change = cnorm(np.subtract(Y, X0, out=E))   # E is free again: no new array
         if np.all(bounds[N] <= np.maximum(rtol * change, floor)):
             return Y, max(N, 1)
         N = degree_for(np.maximum(0.5 * rtol * change, floor))
