@@ -643,3 +643,41 @@ def test_unreferenced_vertices_and_meshes_without_faces():
     for brush in (sf.Brush(bare, radius=1.0), sf.InflateBrush(bare, radius=1.0)):
         assert brush.dab([0.5, 0.5, 0.5]).size == 0
         assert np.array_equal(brush.mesh.vertices, bare.vertices)
+
+
+@pytest.mark.parametrize("band", [30, 56, 60, 64, 65, 80])
+def test_banded_solve_with_and_without_padding(band, monkeypatch):
+    """Bands 56-64 go to LAPACK padded to 65 (its blocked code); the solution is the same system's."""
+    from shapeflow import brush as B
+
+    rng = np.random.default_rng(band)
+    k = 400
+    # a random SPD band matrix: symmetric off-diagonals within `band`, dominant diagonal
+    ri, ci = [], []
+    for i in range(k):
+        for j in rng.choice(np.arange(i + 1, min(k, i + band + 1)), size=min(4, k - i - 1), replace=False) \
+                if i < k - 1 else []:
+            ri.append(i)
+            ci.append(int(j))
+    ri.append(0)
+    ci.append(band)                                   # the band is exactly `band`
+    ri, ci = np.array(ri), np.array(ci)
+    v = -rng.uniform(0.1, 1.0, ri.size)
+    R, C, Vv = np.concatenate([ri, ci]), np.concatenate([ci, ri]), np.concatenate([v, v])
+    o = np.lexsort((C, R))
+    R, C, Vv = R[o], C[o], Vv[o]
+    diag = np.bincount(R, np.abs(Vv), minlength=k) + 1.0
+    rhs = rng.standard_normal((k, 3))
+    A = np.zeros((k, k))
+    A[R, C] = Vv
+    A[np.arange(k), np.arange(k)] = diag
+    expected = np.linalg.solve(A, rhs)
+
+    seen = []
+    real = B.Brush._banded
+    monkeypatch.setattr(B.Brush, "_banded", staticmethod(lambda *a: seen.append(a[-1]) or real(*a)))
+    brush = sf.Brush(grid(5, 5), radius=1.0, solver="banded")
+    X, used, bw = brush._solve_spd(k, R, C, Vv, diag, rhs)
+    assert used == "banded" and bw == band                  # the report keeps the true band
+    assert seen == [65 if 56 <= band <= 64 else band]
+    np.testing.assert_allclose(X, expected, rtol=1e-10, atol=1e-12)
