@@ -203,6 +203,35 @@ def test_fixed_steps_same_result(lam, forced):
     assert disp > 0 and np.abs(fast.vertices - slow.vertices).max() < 1e-10 * disp
 
 
+def test_permuted_pattern_is_the_permuted_matrix(forced):
+    """``_Structure.locality``: the pattern in RCM order, with each entry's source, is P A Pᵀ
+    (duplicates kept), and the fixed-operator expansion in that order gives the same steps."""
+    mesh = meshgen.grid(14, 11, jitter=0.2, seed=3, mix=0.4, z=lambda x, y: 0.1 * x * y)
+    st = _Structure(mesh.topology, "tqlbo")
+    perm, inv, ptr, idx, src = st.locality()
+    assert np.array_equal(np.sort(perm), np.arange(mesh.n_vertices)) and np.array_equal(inv[perm], np.arange(perm.size))
+    data = np.random.default_rng(1).standard_normal(st.indices.size)
+    A = st.matrix_from_data(data).toarray()              # duplicates summed by toarray
+    import scipy.sparse as sp
+    Ap = sp.csr_matrix((data[src], idx, ptr), shape=A.shape)
+    assert np.all(np.diff(idx.astype(np.int64))[np.diff(np.repeat(np.arange(perm.size), np.diff(ptr))) == 0] >= 0)
+    np.testing.assert_allclose(Ap.toarray(), A[np.ix_(perm, perm)], rtol=0, atol=1e-14)
+    assert sorted(src.tolist()) == list(range(st.indices.size))     # every entry once
+    # the expansion's products in the permuted order: same result as without
+    m = sf.Mesh.from_csr(mesh.vertices, mesh.face_sizes, mesh.face_indices)
+    a = sf.flow(m, 2.0, iterations=6, solver="chebyshev")
+    st2 = sf.operators._structure(m, "tqlbo")
+    assert st2._locality is not None                     # the permuted path ran
+    st2._locality = None
+    real = st2.locality
+    st2.locality = lambda: None                          # the unpermuted path
+    b = sf.flow(m, 2.0, iterations=6, solver="chebyshev")
+    st2.locality = real
+    disp = np.abs(b.vertices - mesh.vertices).max()
+    assert a.report.solver == b.report.solver == "chebyshev"
+    assert disp > 0 and np.abs(a.vertices - b.vertices).max() < 1e-12 * disp
+
+
 def test_cg_kernel_columns(forced):
     """1, 2 and 3 columns; zero columns stay zero; same answer as the NumPy CG."""
     from shapeflow.solvers import SPDSolver

@@ -685,6 +685,42 @@ def _scaled_abs_row_max(indptr, indices, data, s, nt):
     return part.max()
 
 
+def permute_pattern(indptr, indices, perm):
+    """The symmetric pattern (indptr, indices) with rows and columns in the order ``perm``.
+
+    Returns (indptr, indices) of the permuted pattern (columns sorted within a
+    row, equal columns in their original order) and ``source``: the position
+    in the original pattern of each permuted entry, so permuted data =
+    data[source].
+    """
+    n = perm.size
+    inv = np.empty(n, np.int64)
+    inv[perm] = np.arange(n)
+    ptr = np.zeros(n + 1, np.int32)
+    np.cumsum(np.diff(indptr)[perm], out=ptr[1:])
+    idx = np.empty(indices.size, np.int32)
+    src = np.empty(indices.size, np.int32)
+    _permute_pattern(indptr, indices, perm, inv, ptr, idx, src)
+    return ptr, idx, src
+
+
+@njit(parallel=True, cache=True)
+def _permute_pattern(indptr, indices, perm, inv, ptr, idx, src):
+    for r in prange(perm.size):
+        o = perm[r]
+        s = indptr[o]
+        q0 = ptr[r]
+        for t in range(indptr[o + 1] - s):
+            col = inv[np.uint64(indices[s + t])]
+            q = q0 + t
+            while q > q0 and idx[q - 1] > col:      # insertion sort, stable
+                idx[q] = idx[q - 1]
+                src[q] = src[q - 1]
+                q -= 1
+            idx[q] = col
+            src[q] = s + t
+
+
 @njit(cache=True)
 def weighted_col_norms2(c, X):
     """Σ_i c_i X_ij² for the three columns of X (n, 3), in row order."""

@@ -446,7 +446,7 @@ class FlowSolver:
         return np.add(V, d, out=d)
 
     def _fixed_steps(self, V: np.ndarray, lam: float, k: int, isys: _System, axes: np.ndarray,
-                     report: FlowReport) -> np.ndarray | None:
+                     report: FlowReport, st=None) -> np.ndarray | None:
         """All ``k`` steps of a fixed operator at once, by a Chebyshev expansion.
 
         With the operator fixed, no boundary step and no volume rescaling, the
@@ -504,17 +504,31 @@ class FlowSolver:
         cols = np.flatnonzero(axes)
         # entries the steps may change: (n, 1) when every axis moves, else (n, 3)
         moving = free[:, None] if axes.all() else free[:, None] & axes[None, :]
-        X0 = np.where(moving, V, 0.0)
+        X0 = np.multiply(V, moving)                     # V on the moving entries, 0 elsewhere
         G = np.zeros((n, 3))
         if r.size:
             for q in cols:
                 G[:, q] = np.bincount(r, e * V[s_, q], minlength=n)
         c_full = np.where(free, isys.c, 0.0)
-        Y, degree = chebyshev_steps(A, c_full, X0, G, lo, hi, (cu, tu), (ch, th), self.rtol, need, steps=k,
-                                    overwrite_g=True)
+        # the expansion's sparse products in a bandwidth-reducing order when the system
+        # lies on the structure's pattern (kernels): same sums, in cache-friendlier order
+        on_pattern = (st is not None and A.indptr is st.indptr and A.indices.shape == st.indices.shape
+                      and np.may_share_memory(A.indices, st.indices))   # scipy may re-wrap indices
+        loc = st.locality() if on_pattern else None
+        if loc is not None:
+            perm, inv, ptr, idx, src = loc
+            Ap = sp.csr_matrix((A.data[src], idx, ptr), shape=A.shape, copy=False)
+            Y, degree = chebyshev_steps(Ap, c_full[perm], X0[perm], G[perm], lo, hi, (cu, tu), (ch, th),
+                                        self.rtol, need, steps=k, overwrite_g=True)
+            if Y is not None:
+                Y = Y[inv]
+        else:
+            Y, degree = chebyshev_steps(A, c_full, X0, G, lo, hi, (cu, tu), (ch, th), self.rtol, need, steps=k,
+                                        overwrite_g=True)
         if Y is None or not np.all(np.isfinite(Y)):
             return None
-        out = np.where(moving, Y, V)
+        np.copyto(Y, V, where=~moving)                  # Y is ours: the fixed entries, exactly
+        out = Y
         report.solver = "chebyshev"
         report.notes.append(f"{k} fixed-operator steps as one Chebyshev expansion of degree {degree} "
                             f"(spectrum bound [1, {hi:.3g}])")
@@ -599,7 +613,7 @@ class FlowSolver:
             if it == 0 and update == "fixed" and iterations >= 2 and not preserve_volume and bsys is None \
                     and isys is not None and isys.solver.method == "cg" \
                     and self.solver_method in ("auto", "chebyshev"):
-                V_all = self._fixed_steps(V, lam, int(iterations), isys, ax, report)
+                V_all = self._fixed_steps(V, lam, int(iterations), isys, ax, report, op.st)
                 if V_all is not None:
                     V = V_all
                     if progress is not None:

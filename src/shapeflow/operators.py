@@ -149,6 +149,7 @@ class _Structure:
         self._topo_ref = weakref.ref(topo)
         self.scheme = scheme
         self._corner_w = None
+        self._locality = None
         K = kernels.get(n)
         if K is not None and (scheme == "blender" or sizes.size == 0 or int(sizes.max()) <= 4):
             # no fan triangles: the compiled twin of the code below (corner weights made on demand)
@@ -309,6 +310,32 @@ class _Structure:
             data[self.pos_upper] = off
             data[self.pos_lower] = off
         return self.matrix_from_data(data, copy_pattern=copy_pattern)
+
+    def locality(self):
+        """A bandwidth-reducing order of the vertices and the pattern in that order (kernels only).
+
+        Returns ``(perm, inv, indptr, indices, source)``: reverse Cuthill–McKee
+        order of the pattern's graph, its inverse, the permuted pattern and the
+        original position of each permuted entry (permuted data = data[source]).
+        Built once per topology (~30 ms at 126K vertices), for the many sparse
+        products of the fixed-operator expansion: in this order a row's
+        neighbours sit in nearby rows, so the products' gathers stay in cache
+        (126K-vertex Suzanne: 2.1 -> 1.6 ms per product).  None without the
+        compiled kernels.
+        """
+        K = kernels.get(self.n)
+        if K is None:
+            return None
+        if self._locality is None:
+            from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+            G = sp.csr_matrix((np.ones(self.indices.size), self.indices, self.indptr), shape=(self.n, self.n))
+            perm = reverse_cuthill_mckee(G, symmetric_mode=True).astype(np.int64)
+            ptr, idx, src = K.permute_pattern(self.indptr, self.indices, perm)
+            inv = np.empty_like(perm)
+            inv[perm] = np.arange(perm.size)
+            self._locality = (perm, inv, ptr, idx, src)
+        return self._locality
 
     def matrix_from_data(self, data: np.ndarray, *, copy_pattern: bool = False) -> sp.csr_matrix:
         """The CSR matrix with this pattern and the given ``data`` (one value per stored entry)."""
