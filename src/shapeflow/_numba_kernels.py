@@ -721,6 +721,32 @@ def _permute_pattern(indptr, indices, perm, inv, ptr, idx, src):
             src[q] = s + t
 
 
+def take(a, idx):
+    """``a[idx]`` for a 1-D or (n, 3) float64 array and non-negative indices, on all threads
+    (NumPy's fancy indexing converts int32 indices to a new intp array first)."""
+    out = np.empty((idx.size,) + a.shape[1:], a.dtype)
+    if a.ndim == 1:
+        _take1(a, idx, out)
+    else:
+        _take3(a, idx, out)
+    return out
+
+
+@njit(parallel=True, cache=True)
+def _take1(a, idx, out):
+    for i in prange(idx.size):
+        out[i] = a[np.uint64(idx[i])]
+
+
+@njit(parallel=True, cache=True)
+def _take3(a, idx, out):
+    for i in prange(idx.size):
+        j = np.uint64(idx[i])
+        out[i, 0] = a[j, 0]
+        out[i, 1] = a[j, 1]
+        out[i, 2] = a[j, 2]
+
+
 @njit(cache=True)
 def weighted_col_norms2(c, X):
     """Σ_i c_i X_ij² for the three columns of X (n, 3), in row order."""

@@ -517,11 +517,11 @@ class FlowSolver:
         loc = st.locality() if on_pattern else None
         if loc is not None:
             perm, inv, ptr, idx, src = loc
-            Ap = sp.csr_matrix((A.data[src], idx, ptr), shape=A.shape, copy=False)
-            Y, degree = chebyshev_steps(Ap, c_full[perm], X0[perm], G[perm], lo, hi, (cu, tu), (ch, th),
-                                        self.rtol, need, steps=k, overwrite_g=True)
+            Ap = sp.csr_matrix((K.take(A.data, src), idx, ptr), shape=A.shape, copy=False)
+            Y, degree = chebyshev_steps(Ap, K.take(c_full, perm), K.take(X0, perm), K.take(G, perm), lo, hi,
+                                        (cu, tu), (ch, th), self.rtol, need, steps=k, overwrite_g=True)
             if Y is not None:
-                Y = Y[inv]
+                Y = K.take(Y, inv)
         else:
             Y, degree = chebyshev_steps(A, c_full, X0, G, lo, hi, (cu, tu), (ch, th), self.rtol, need, steps=k,
                                         overwrite_g=True)
