@@ -747,6 +747,32 @@ def _take3(a, idx, out):
         out[i, 2] = a[j, 2]
 
 
+@njit(parallel=True, cache=True)
+def take_free(V, perm, free, out):
+    """out[i] = V[perm[i]] where free[perm[i]], else 0 (rows of (n, 3) arrays)."""
+    for i in prange(perm.size):
+        j = np.uint64(perm[i])
+        f = free[j]
+        out[i, 0] = V[j, 0] if f else 0.0
+        out[i, 1] = V[j, 1] if f else 0.0
+        out[i, 2] = V[j, 2] if f else 0.0
+
+
+@njit(parallel=True, cache=True)
+def untake_free(Y, inv, free, V, out):
+    """out[v] = Y[inv[v]] where free[v], else V[v] (rows of (n, 3) arrays)."""
+    for v in prange(inv.size):
+        if free[v]:
+            j = np.uint64(inv[v])
+            out[v, 0] = Y[j, 0]
+            out[v, 1] = Y[j, 1]
+            out[v, 2] = Y[j, 2]
+        else:
+            out[v, 0] = V[v, 0]
+            out[v, 1] = V[v, 1]
+            out[v, 2] = V[v, 2]
+
+
 @njit(cache=True)
 def weighted_col_norms2(c, X):
     """Σ_i c_i X_ij² for the three columns of X (n, 3), in row order."""

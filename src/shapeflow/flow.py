@@ -504,7 +504,6 @@ class FlowSolver:
         cols = np.flatnonzero(axes)
         # entries the steps may change: (n, 1) when every axis moves, else (n, 3)
         moving = free[:, None] if axes.all() else free[:, None] & axes[None, :]
-        X0 = np.multiply(V, moving)                     # V on the moving entries, 0 elsewhere
         G = np.zeros((n, 3))
         if r.size:
             for q in cols:
@@ -514,21 +513,26 @@ class FlowSolver:
         # lies on the structure's pattern (kernels): same sums, in cache-friendlier order
         on_pattern = (st is not None and A.indptr is st.indptr and A.indices.shape == st.indices.shape
                       and np.may_share_memory(A.indices, st.indices))   # scipy may re-wrap indices
-        loc = st.locality() if on_pattern else None
+        loc = st.locality() if (on_pattern and axes.all()) else None
         if loc is not None:
             perm, inv, ptr, idx, src = loc
             Ap = sp.csr_matrix((K.take(A.data, src), idx, ptr), shape=A.shape, copy=False)
-            Y, degree = chebyshev_steps(Ap, K.take(c_full, perm), K.take(X0, perm), K.take(G, perm), lo, hi,
-                                        (cu, tu), (ch, th), self.rtol, need, steps=k, overwrite_g=True)
-            if Y is not None:
-                Y = K.take(Y, inv)
+            X0p = np.empty((n, 3))
+            K.take_free(V, perm, free, X0p)             # V on the free rows, 0 elsewhere, permuted
+            Yp, degree = chebyshev_steps(Ap, K.take(c_full, perm), X0p, K.take(G, perm), lo, hi,
+                                         (cu, tu), (ch, th), self.rtol, need, steps=k, overwrite_g=True)
+            if Yp is None or not np.all(np.isfinite(Yp)):
+                return None
+            out = X0p                                   # free again: the result, fixed rows exactly V
+            K.untake_free(Yp, inv, free, V, out)
         else:
+            X0 = np.multiply(V, moving)                 # V on the moving entries, 0 elsewhere
             Y, degree = chebyshev_steps(A, c_full, X0, G, lo, hi, (cu, tu), (ch, th), self.rtol, need, steps=k,
                                         overwrite_g=True)
-        if Y is None or not np.all(np.isfinite(Y)):
-            return None
-        np.copyto(Y, V, where=~moving)                  # Y is ours: the fixed entries, exactly
-        out = Y
+            if Y is None or not np.all(np.isfinite(Y)):
+                return None
+            np.copyto(Y, V, where=~moving)              # Y is ours: the fixed entries, exactly
+            out = Y
         report.solver = "chebyshev"
         report.notes.append(f"{k} fixed-operator steps as one Chebyshev expansion of degree {degree} "
                             f"(spectrum bound [1, {hi:.3g}])")
