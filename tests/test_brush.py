@@ -675,9 +675,19 @@ def test_banded_solve_with_and_without_padding(band, monkeypatch):
 
     seen = []
     real = B.Brush._banded
-    monkeypatch.setattr(B.Brush, "_banded", staticmethod(lambda *a: seen.append(a[-1]) or real(*a)))
+    monkeypatch.setattr(B.Brush, "_banded", lambda self, *a: seen.append(a[-1]) or real(self, *a))
     brush = sf.Brush(grid(5, 5), radius=1.0, solver="banded")
     X, used, bw = brush._solve_spd(k, R, C, Vv, diag, rhs)
     assert used == "banded" and bw == band                  # the report keeps the true band
     assert seen == [65 if 56 <= band <= 64 else band]
     np.testing.assert_allclose(X, expected, rtol=1e-10, atol=1e-12)
+    # the band storage is reused: a second, smaller solve on the same brush (stale values in
+    # the buffer must not leak into it) and the first one again
+    half = (R < k // 2) & (C < k // 2)
+    X2, _, _ = brush._solve_spd(k // 2, R[half], C[half], Vv[half], diag[:k // 2], rhs[:k // 2])
+    A2 = np.zeros((k // 2, k // 2))
+    A2[R[half], C[half]] = Vv[half]
+    A2[np.arange(k // 2), np.arange(k // 2)] = diag[:k // 2]
+    np.testing.assert_allclose(X2, np.linalg.solve(A2, rhs[:k // 2]), rtol=1e-10, atol=1e-12)
+    X3, _, _ = brush._solve_spd(k, R, C, Vv, diag, rhs)
+    np.testing.assert_array_equal(X3, X)
