@@ -406,6 +406,23 @@ def test_compiled_local_order_matches_scipy():
             perms.append(sf.Brush._local_rcm(k, ri, ci, grouped=True))
     assert np.array_equal(perms[0][0], perms[1][0]) and np.array_equal(perms[0][1], perms[1][1])
     assert np.array_equal(np.sort(perms[1][0]), np.arange(k))
+    # the narrower of the two sweeps' Cuthill-McKee orders (u = last reached from 0, w = last from u)
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import breadth_first_order
+
+    ptr = np.concatenate([[0], np.cumsum(np.bincount(ri, minlength=k))])
+    G = sp.csr_matrix((np.ones(ri.size), ci, ptr), shape=(k, k))      # neighbours in stored order
+
+    def band(p):
+        inv = np.empty(k, np.int64)
+        inv[p] = np.arange(k)
+        return int(np.abs(inv[ri] - inv[ci]).max())
+
+    u = breadth_first_order(G, 0, return_predecessors=False)[-1]
+    p_u = breadth_first_order(G, u, return_predecessors=False)
+    p_w = breadth_first_order(G, p_u[-1], return_predecessors=False)
+    assert band(perms[1][0]) == min(band(p_u), band(p_w))
+    assert np.array_equal(perms[1][1][perms[1][0]], np.arange(k))
 
 
 # --- strokes ----------------------------------------------------------------------------------
