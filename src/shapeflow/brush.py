@@ -1396,7 +1396,7 @@ class Brush(_BrushBase):
         from scipy.sparse.csgraph import breadth_first_order, reverse_cuthill_mckee
 
         K = kernels.get(k, min_size=0)
-        if grouped and K is not None:   # the same two searches, compiled, without a CSR matrix
+        if grouped and K is not None:   # the same searches, compiled, without a CSR matrix
             ptr = np.zeros(k + 1, dtype=np.int64)
             np.cumsum(np.bincount(ri, minlength=k), out=ptr[1:])
             o = np.empty(k, np.int64)

@@ -446,7 +446,7 @@ class FlowSolver:
         return np.add(V, d, out=d)
 
     def _fixed_steps(self, V: np.ndarray, lam: float, k: int, isys: _System, axes: np.ndarray,
-                     report: FlowReport, st=None) -> np.ndarray | None:
+                     report: FlowReport, st) -> np.ndarray | None:
         """All ``k`` steps of a fixed operator at once, by a Chebyshev expansion.
 
         With the operator fixed, no boundary step and no volume rescaling, the
@@ -501,33 +501,30 @@ class FlowSolver:
             return None
         r, s_, e = isys.coupling
         n = V.shape[0]
-        cols = np.flatnonzero(axes)
-        # entries the steps may change: (n, 1) when every axis moves, else (n, 3)
-        moving = free[:, None] if axes.all() else free[:, None] & axes[None, :]
         G = np.zeros((n, 3))
         if r.size:
-            for q in cols:
+            for q in np.flatnonzero(axes):
                 G[:, q] = np.bincount(r, e * V[s_, q], minlength=n)
-        c_full = np.where(free, isys.c, 0.0)
-        # the expansion's sparse products in a bandwidth-reducing order when the system
-        # lies on the structure's pattern (kernels): same sums, in cache-friendlier order
-        on_pattern = (st is not None and A.indptr is st.indptr and A.indices.shape == st.indices.shape
-                      and np.may_share_memory(A.indices, st.indices))   # scipy may re-wrap indices
-        loc = st.locality() if (on_pattern and axes.all()) else None
+        c = isys.c                                      # 0 on the held rows (see _interior_system)
+        # with the kernels, the expansion's sparse products in a bandwidth-reducing order:
+        # same sums, in cache-friendlier order (A's data lies on st's pattern, as built there)
+        loc = st.locality() if axes.all() else None
         if loc is not None:
             perm, inv, ptr, idx, src = loc
             Ap = sp.csr_matrix((K.take(A.data, src), idx, ptr), shape=A.shape, copy=False)
             X0p = np.empty((n, 3))
             K.take_free(V, perm, free, X0p)             # V on the free rows, 0 elsewhere, permuted
-            Yp, degree = chebyshev_steps(Ap, K.take(c_full, perm), X0p, K.take(G, perm), lo, hi,
+            Yp, degree = chebyshev_steps(Ap, K.take(c, perm), X0p, K.take(G, perm), lo, hi,
                                          (cu, tu), (ch, th), self.rtol, need, steps=k, overwrite_g=True)
             if Yp is None or not np.all(np.isfinite(Yp)):
                 return None
             out = X0p                                   # free again: the result, fixed rows exactly V
             K.untake_free(Yp, inv, free, V, out)
         else:
+            # entries the steps may change: (n, 1) when every axis moves, else (n, 3)
+            moving = free[:, None] if axes.all() else free[:, None] & axes[None, :]
             X0 = np.multiply(V, moving)                 # V on the moving entries, 0 elsewhere
-            Y, degree = chebyshev_steps(A, c_full, X0, G, lo, hi, (cu, tu), (ch, th), self.rtol, need, steps=k,
+            Y, degree = chebyshev_steps(A, c, X0, G, lo, hi, (cu, tu), (ch, th), self.rtol, need, steps=k,
                                         overwrite_g=True)
             if Y is None or not np.all(np.isfinite(Y)):
                 return None
