@@ -708,3 +708,131 @@ def test_banded_solve_with_and_without_padding(band, monkeypatch):
     np.testing.assert_allclose(X2, np.linalg.solve(A2, rhs[:k // 2]), rtol=1e-10, atol=1e-12)
     X3, _, _ = brush._solve_spd(k, R, C, Vv, diag, rhs)
     np.testing.assert_array_equal(X3, X)
+
+
+# --- the split solver: two banded halves on two threads, a dense separator ------------------
+
+def _split_ready():
+    from shapeflow import brush as B
+
+    return sf.kernels.available() and B._split_routines() is not None
+
+
+requires_split = pytest.mark.skipif(not _split_ready(), reason="needs numba and SciPy's OpenBLAS LAPACK pointers")
+
+
+def _grid_system(w, h, seed, eight=True, shuffle=True):
+    """An SPD system on a w x h grid graph (4- or 8-neighbour), rows grouped in increasing
+    order, unknowns numbered at random: (k, ri, ci, vi, diag, rhs, dense A)."""
+    rng = np.random.default_rng(seed)
+    k = w * h
+    idx = np.arange(k).reshape(h, w)
+    steps = [(0, 1), (1, 0)] + ([(1, 1), (1, -1)] if eight else [])
+    a, b = [], []
+    for dy, dx in steps:
+        src = idx[max(0, -dy):h - max(0, dy), max(0, -dx):w - max(0, dx)]
+        dst = idx[max(0, dy):h + min(0, dy) or None, max(0, dx):w + min(0, dx) or None]
+        a.append(src.ravel())
+        b.append(dst.ravel())
+    a, b = np.concatenate(a), np.concatenate(b)
+    p = rng.permutation(k) if shuffle else np.arange(k)
+    a, b = p[a], p[b]
+    v = -rng.uniform(0.2, 1.0, a.size)
+    R, C, V = np.concatenate([a, b]), np.concatenate([b, a]), np.concatenate([v, v])
+    o = np.lexsort((rng.random(R.size), R))          # grouped by row, neighbours in any order
+    R, C, V = R[o], C[o], V[o]
+    diag = np.bincount(R, -V, minlength=k) + rng.uniform(1e-4, 1e-2, k)   # a Laplacian + a small mass
+    rhs = rng.standard_normal((k, 3))
+    A = np.zeros((k, k))
+    A[R, C] = V
+    A[np.arange(k), np.arange(k)] = diag
+    return k, R, C, V, diag, rhs, A
+
+
+@requires_split
+@pytest.mark.parametrize("w, h, eight", [(40, 30, True), (36, 36, False), (60, 25, True), (70, 40, True)])
+def test_split_solve_matches_a_dense_solve(w, h, eight, monkeypatch):
+    from shapeflow import brush as B
+    from shapeflow import kernels
+
+    K = kernels.get(10**9)
+    k, R, C, V, diag, rhs, A = _grid_system(w, h, seed=w * h, eight=eight)
+    seen = []
+    real = K.split_solve
+    monkeypatch.setattr(K, "split_solve", lambda *a: seen.append((a[-5].copy(), a[-3].copy())) or real(*a))   # perm, dims
+    brush = sf.Brush(grid(5, 5), radius=1.0)
+    X, used, bw = brush._solve_spd(k, R, C, V, diag, rhs)
+    assert used == "split"
+    np.testing.assert_allclose(X, np.linalg.solve(A, rhs), rtol=1e-9, atol=1e-11)
+    # the order, checked from its definition
+    (perm, dims), = seen
+    nA, nB, nS, kdA, kdB, tA, tB = (int(x) for x in dims)
+    assert nA + nB + nS == k and np.array_equal(np.sort(perm), np.arange(k))
+    pos = np.empty(k, np.int64)
+    pos[perm] = np.arange(k)
+    i, j = pos[R], pos[C]
+    part = np.where(i < nA, 0, np.where(i < nA + nB, 1, 2)), np.where(j < nA, 0, np.where(j < nA + nB, 1, 2))
+    assert not ((part[0] == 0) & (part[1] == 1)).any()          # the halves are not coupled
+    inA, inB = (part[0] == 0) & (part[1] == 0), (part[0] == 1) & (part[1] == 1)
+    true_a, true_b = np.abs(i - j)[inA].max(), np.abs(i - j)[inB].max()
+    assert bw == max(true_a, true_b)
+    for true, kd in ((true_a, kdA), (true_b, kdB)):   # LAPACK sees the band, padded as BLOCKED_BAND says
+        assert kd == (B.BLOCKED_BAND[1] if B.BLOCKED_BAND[0] <= true < B.BLOCKED_BAND[1] else true)
+    toS = part[1] == 2
+    assert (i[toS & (part[0] == 0)] >= nA - tA).all() and (i[toS & (part[0] == 1)] >= nA + nB - tB).all()
+    assert 0 < tA <= nA and 0 < tB <= nB
+    # halves balanced around the median level
+    assert min(nA, nB) >= k // 5
+
+
+@requires_split
+def test_split_solver_falls_back_where_it_does_not_apply():
+    import numba
+
+    k, R, C, V, diag, rhs, A = _grid_system(40, 30, seed=5)
+    brush = sf.Brush(grid(5, 5), radius=1.0)
+    # two disconnected copies: no split, the one-band path solves it
+    R2, C2 = np.concatenate([R, R + k]), np.concatenate([C, C + k])
+    V2, d2, rhs2 = np.concatenate([V, V]), np.concatenate([diag, diag]), np.vstack([rhs, -rhs])
+    X, used, _ = brush._solve_spd(2 * k, R2, C2, V2, d2, rhs2)
+    assert used == "banded"
+    ref = np.linalg.solve(A, rhs)
+    np.testing.assert_allclose(X, np.vstack([ref, -ref]), rtol=1e-9, atol=1e-11)
+    # not positive definite: LU takes over, the answer is still the system's
+    bad = diag.copy()
+    bad[::7] = -5.0
+    A_bad = A.copy()
+    A_bad[np.arange(k), np.arange(k)] = bad
+    X, used, _ = brush._solve_spd(k, R, C, V, bad, rhs)
+    assert used in ("lu", "cholesky")
+    np.testing.assert_allclose(A_bad @ X, rhs, rtol=1e-8, atol=1e-8)
+    # one thread: the one-band path
+    old = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        X, used, _ = brush._solve_spd(k, R, C, V, diag, rhs)
+    finally:
+        numba.set_num_threads(old)
+    assert used == "banded"
+    np.testing.assert_allclose(X, ref, rtol=1e-9, atol=1e-11)
+    # an explicit solver="banded" never splits; small systems do not either
+    assert sf.Brush(grid(5, 5), radius=1.0, solver="banded")._solve_spd(k, R, C, V, diag, rhs)[1] == "banded"
+    ks, Rs, Cs, Vs, ds, rs, As = _grid_system(20, 20, seed=6)
+    assert brush._solve_spd(ks, Rs, Cs, Vs, ds, rs)[1] == "banded"
+
+
+@requires_split
+def test_split_dabs_equal_one_band_dabs():
+    """Dabs of ~1,500 unknowns on a bumpy grid: the split solver and the one-band solver agree."""
+    mesh = _bumpy_grid(60, mix=0.3)
+    c = mesh.vertices[np.argmin(np.linalg.norm(mesh.vertices - mesh.vertices.mean(0), axis=1))]
+    a = sf.Brush(mesh, lam=-30.0, radius=0.38 * mesh.diagonal)
+    b = sf.Brush(mesh, lam=-30.0, radius=0.38 * mesh.diagonal, solver="banded")
+    for shift in (0.0, 0.1, -0.1):
+        p = c + shift * mesh.diagonal
+        a.dab(p)
+        b.dab(p)
+        assert a.last.solver == "split" and b.last.solver == "banded"
+        assert a.last.indices.size >= 1000
+        np.testing.assert_array_equal(a.last.indices, b.last.indices)
+        assert np.abs(a.last.positions - b.last.positions).max() <= 1e-10 * mesh.diagonal
