@@ -791,13 +791,30 @@ def test_split_solver_falls_back_where_it_does_not_apply():
 
     k, R, C, V, diag, rhs, A = _grid_system(40, 30, seed=5)
     brush = sf.Brush(grid(5, 5), radius=1.0)
-    # two disconnected copies: no split, the one-band path solves it
-    R2, C2 = np.concatenate([R, R + k]), np.concatenate([C, C + k])
-    V2, d2, rhs2 = np.concatenate([V, V]), np.concatenate([diag, diag]), np.vstack([rhs, -rhs])
-    X, used, _ = brush._solve_spd(2 * k, R2, C2, V2, d2, rhs2)
-    assert used == "banded"
     ref = np.linalg.solve(A, rhs)
-    np.testing.assert_allclose(X, np.vstack([ref, -ref]), rtol=1e-9, atol=1e-11)
+    # components: the largest is split, the others join the smaller half
+    kk, Rk, Ck, Vk, dk, rk, Ak = _grid_system(12, 9, seed=8)
+    R2, C2 = np.concatenate([R, Rk + k]), np.concatenate([C, Ck + k])
+    V2, d2 = np.concatenate([V, Vk]), np.concatenate([diag, dk, [2.0]])   # + an isolated unknown
+    rhs2 = np.vstack([rhs, rk, [[1.0, -2.0, 4.0]]])
+    X, used, _ = brush._solve_spd(k + kk + 1, R2, C2, V2, d2, rhs2)
+    assert used == "split"
+    np.testing.assert_allclose(X, np.vstack([ref, np.linalg.solve(Ak, rk), [[0.5, -1.0, 2.0]]]),
+                               rtol=1e-9, atol=1e-11)
+    # no balanced cut (a star: the median unknown's level holds all but two): not split
+    ks = 1200
+    Rs = np.concatenate([np.zeros(ks - 1, np.int64), np.arange(1, ks)])
+    Cs = np.concatenate([np.arange(1, ks), np.zeros(ks - 1, np.int64)])
+    o = np.argsort(Rs, kind="stable")
+    Rs, Cs = Rs[o], Cs[o]
+    Vs = -np.ones(Rs.size)
+    ds = np.full(ks, 2.0)
+    ds[0] = ks + 1.0
+    As = np.diag(ds)
+    As[Rs, Cs] = Vs
+    X, used, _ = brush._solve_spd(ks, Rs, Cs, Vs, ds, rhs[:ks])
+    assert used != "split"
+    np.testing.assert_allclose(X, np.linalg.solve(As, rhs[:ks]), rtol=1e-9, atol=1e-11)
     # not positive definite: LU takes over, the answer is still the system's
     bad = diag.copy()
     bad[::7] = -5.0

@@ -1078,12 +1078,15 @@ def _bfs_levels(ptr, adj, start, order, lev):
 
 
 @njit(cache=True)
-def _order_band(ri, ci, order, inv):
-    """Band of the entries (ri, ci) in ``order``; leaves ``inv`` = inverse of ``order``."""
+def _order_band(ri, ci, order, inv, lev):
+    """Band of the entries (ri, ci) in rows with ``lev`` >= 0, numbered by ``order``
+    (which lists exactly those rows); leaves their ``inv`` = position in ``order``."""
     for i in range(order.size):
         inv[order[i]] = i
     bw = 0
     for q in range(ri.size):
+        if lev[ri[q]] < 0:
+            continue
         d = inv[ri[q]] - inv[ci[q]]
         if d > bw:
             bw = d
@@ -1094,45 +1097,70 @@ def _order_band(ri, ci, order, inv):
 def split_order(ptr, ri, ci, min_half, perm, inv, o1, o2, lev1, lev2, dims):
     """Order for :func:`split_solve`: [A, B, S].
 
-    Cuthill–McKee level structures from a pseudo-peripheral vertex (u, the
-    last vertex reached from vertex 0, and w, the last reached from u; the
-    order with the narrower band is kept, u's on a tie), split at the level
-    S holding the median vertex: A = the levels before it in CM order, B =
-    the levels after it in reversed CM order, so that the vertices coupled to
-    S come last in both halves.  Writes ``dims`` = (nA, nB, nS, band of A,
-    band of B, tA, tB), t = how many trailing rows of a half are coupled to S.
-    Returns 0; -1 when the graph is disconnected, -2 when a half would hold
-    fewer than ``min_half`` vertices.
+    Cuthill–McKee level structures of the largest connected component from a
+    pseudo-peripheral vertex (u, the last vertex reached from the
+    component's first vertex, and w, the last reached from u; the order with
+    the narrower band is kept, u's on a tie), cut at the level S holding the
+    component's median vertex: A = the levels before it in CM order, B = the
+    levels after it in reversed CM order, so that the vertices coupled to S
+    come last in both halves.  Other components (not coupled to anything
+    else) go first into the smaller half, each in breadth-first order.
+    Writes ``dims`` = (nA, nB, nS, band of A, band of B, tA, tB), t = how
+    many trailing rows of a half are coupled to S.  Returns 0, or -2 when a
+    half would hold fewer than ``min_half`` vertices.
     """
     k = perm.size
+    # connected components, in breadth-first order each, into `rest`
+    rest = np.empty(k, np.int64)
+    lev2[:] = -1
+    pos = 0
+    main = 0
+    msize = 0
+    for v in range(k):
+        if lev2[v] < 0:
+            c = _bfs_levels(ptr, ci, v, rest[pos:], lev2)
+            if c > msize:
+                main = v
+                msize = c
+            pos += c
     lev1[:] = -1
-    if _bfs_levels(ptr, ci, 0, o1, lev1) < k:
-        return -1
-    u = o1[k - 1]
+    _bfs_levels(ptr, ci, main, o1, lev1)
+    u = o1[msize - 1]
     lev1[:] = -1
     _bfs_levels(ptr, ci, u, o1, lev1)
     lev2[:] = -1
-    _bfs_levels(ptr, ci, o1[k - 1], o2, lev2)
-    if _order_band(ri, ci, o2, inv) < _order_band(ri, ci, o1, inv):
+    _bfs_levels(ptr, ci, o1[msize - 1], o2, lev2)
+    if _order_band(ri, ci, o2[:msize], inv, lev2) < _order_band(ri, ci, o1[:msize], inv, lev1):
         o, lev = o2, lev2
     else:
         o, lev = o1, lev1
-    s = lev[o[k // 2]]
-    a0 = k // 2
+    m = msize
+    s = lev[o[m // 2]]
+    a0 = m // 2
     while a0 > 0 and lev[o[a0 - 1]] == s:
         a0 -= 1
-    a1 = k // 2
-    while a1 < k and lev[o[a1]] == s:
+    a1 = m // 2
+    while a1 < m and lev[o[a1]] == s:
         a1 += 1
-    nA = a0
     nS = a1 - a0
-    nB = k - a1
+    n_rest = k - m
+    into_a = a0 <= m - a1
+    nA = a0 + (n_rest if into_a else 0)
+    nB = m - a1 + (0 if into_a else n_rest)
     if nA < min_half or nB < min_half:
         return -2
-    for i in range(nA):
-        perm[i] = o[i]
-    for i in range(nB):
-        perm[nA + i] = o[k - 1 - i]
+    p = 0 if into_a else nA
+    for i in range(k):
+        v = rest[i]
+        if lev[v] < 0:              # not in the largest component
+            perm[p] = v
+            p += 1
+    p = nA - a0
+    for i in range(a0):
+        perm[p + i] = o[i]
+    p = nA + nB - (m - a1)
+    for i in range(m - a1):
+        perm[p + i] = o[m - 1 - i]
     for i in range(nS):
         perm[nA + nB + i] = o[a0 + i]
     for i in range(k):
@@ -1166,6 +1194,8 @@ def split_order(ptr, ri, ci, min_half, perm, inv, o1, o2, lev1, lev2, dims):
     dims[4] = bwB
     dims[5] = nA - fA
     dims[6] = e - fB
+    if dims[5] < 1 or dims[6] < 1:
+        return -2                   # a half not coupled to S (the cut is not in the middle)
     return 0
 
 

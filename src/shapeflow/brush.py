@@ -51,8 +51,7 @@ unknowns in Cuthill–McKee level order, cut at the middle level into two
 banded halves that LAPACK factors at the same time (one per thread) and a
 separator solved through its dense Schur complement (1.1–2.3 ms against
 1.6–3.8 ms for one band on captured 2,400-unknown dab systems).  Otherwise,
-and where the split does not apply (a disconnected region, a half too
-small), with LAPACK's banded Cholesky
+and where the split does not apply (no balanced cut), with LAPACK's banded Cholesky
 (``dpbsv``, lower band storage, one BLAS thread), after a local reordering
 (breadth-first Cuthill–McKee from a pseudo-peripheral unknown) when the band
 of the global order is much wider than that usually gives (about 1.2·sqrt(k)
@@ -1487,12 +1486,13 @@ class Brush(_BrushBase):
         """The system solved as two banded halves and their separator, the halves on
         two threads (``split_solve`` in the compiled kernels): (X, "split", band),
         or None where it does not apply (no kernels, one thread, no LAPACK pointers,
-        a disconnected or unbalanced system, not numerically positive definite).
+        no balanced cut, not numerically positive definite).
 
-        Order: Cuthill–McKee levels as :meth:`_local_rcm`, cut at the level of
-        the median unknown (the separator S, a dense Schur complement); the
-        levels before it (CM order) and after it (reversed) are the halves,
-        so only their trailing rows couple to S.  Same flops as one band of
+        Order: Cuthill–McKee levels of the largest connected component as
+        :meth:`_local_rcm`, cut at the level of its median unknown (the
+        separator S, a dense Schur complement); the levels before it (CM
+        order) and after it (reversed) are the halves, so only their trailing
+        rows couple to S; other components join the smaller half.  Same flops as one band of
         the same width, but each thread factors half the rows: on 31
         captured 2,400-unknown dab systems, 1.1–2.3 ms against 1.6–3.8 ms for
         the one-band solve (reordering included).  The band reported is the
