@@ -1114,18 +1114,16 @@ def split_order(ptr, ri, ci, min_half, perm, inv, o1, o2, lev1, lev2, dims):
     rest = np.empty(k, np.int64)
     lev2[:] = -1
     pos = 0
-    main = 0
+    mpos = 0
     msize = 0
     for v in range(k):
         if lev2[v] < 0:
             c = _bfs_levels(ptr, ci, v, rest[pos:], lev2)
             if c > msize:
-                main = v
+                mpos = pos
                 msize = c
             pos += c
-    lev1[:] = -1
-    _bfs_levels(ptr, ci, main, o1, lev1)
-    u = o1[msize - 1]
+    u = rest[mpos + msize - 1]      # the last vertex reached from the component's first
     lev1[:] = -1
     _bfs_levels(ptr, ci, u, o1, lev1)
     lev2[:] = -1
