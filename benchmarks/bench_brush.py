@@ -2,7 +2,7 @@
 
     python benchmarks/bench_brush.py             # all meshes, dabs of ~800 / 1,800 / 2,600 vertices
     python benchmarks/bench_brush.py --quick     # fewer dabs, skip the largest mesh
-    python benchmarks/bench_brush.py --solvers   # also compare the linear solvers per dab size
+    python benchmarks/bench_brush.py --solvers   # also compare the linear solvers per dab size (auto = split)
     python benchmarks/bench_brush.py --profile   # also split each dab into its phases
 
 Figure 10 plots sculpted vertices per second for dabs of ~800, ~1,800 and
@@ -163,19 +163,21 @@ def compare_solvers(mesh, lam, centres, radii):
     for c, r in zip(centres, radii):
         probe.radius = r
         probe.preview(c)
-    methods = ["banded", "lu"] + (["cholesky"] if cholesky_available() else [])
+    # "auto": the two-thread split solver where it applies (1,000+ unknowns, numba), else one band
+    methods = ["auto", "banded", "lu"] + (["cholesky"] if cholesky_available() else [])
     out = {m: [] for m in methods + ["dense"]}
-    for (k, ri, ci, vi, diag, rhs) in captured:
-        for m in methods:
+    for j, (k, ri, ci, vi, diag, rhs) in enumerate(captured):
+        for m in methods[j % len(methods):] + methods[:j % len(methods)]:   # rotated: no method always first
             probe.solver = m
             t0 = time.perf_counter()
             orig(k, ri, ci, vi, diag, rhs)
             out[m].append(time.perf_counter() - t0)
-        if len(out["dense"]) < 3:
-            A = probe._csr(k, ri, ci, vi, diag).toarray()
-            t0 = time.perf_counter()
-            sl.cho_solve(sl.cho_factor(A), rhs)
-            out["dense"].append(time.perf_counter() - t0)
+    # dense last: its multi-threaded BLAS leaves OpenBLAS threads spinning on the other core
+    for (k, ri, ci, vi, diag, rhs) in captured[:3]:
+        A = probe._csr(k, ri, ci, vi, diag).toarray()
+        t0 = time.perf_counter()
+        sl.cho_solve(sl.cho_factor(A), rhs)
+        out["dense"].append(time.perf_counter() - t0)
     probe.solver = "auto"
     ks = [c[0] for c in captured]
     return int(np.median(ks)), {m: 1e3 * statistics.median(v) for m, v in out.items() if v}
@@ -187,7 +189,7 @@ def main(argv=None) -> int:
     ap.add_argument("--dabs", type=int, default=103,
                     help="dabs per case (3 of them warm-up); a case then lasts ~0.5 s, longer than most of the machine's noise bursts")
     ap.add_argument("--lam", type=float, default=-50.0, help="λ of every dab (default -50)")
-    ap.add_argument("--solvers", action="store_true", help="compare banded / SuperLU / cholespy / dense")
+    ap.add_argument("--solvers", action="store_true", help="compare auto (split) / banded / SuperLU / cholespy / dense")
     ap.add_argument("--profile", action="store_true", help="median time of each phase of a dab")
     ap.add_argument("--keep", action="store_true", help="keep every dab (no undo between timed dabs)")
     args = ap.parse_args(argv)
