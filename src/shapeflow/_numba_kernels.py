@@ -969,29 +969,6 @@ def brush_assemble(S, R, loc, slot, vn_ptr, vn_nb, vn_pair, pw, V, cdiag, bl, Xb
 
 
 @njit(cache=True)
-def bfs_order(ptr, nbr, start, order, seen):
-    """Breadth-first order from ``start`` over the CSR graph (ptr, nbr), neighbours
-    in stored order (as scipy's ``breadth_first_order``); ``seen`` is all False
-    and is left so.  Returns the number of vertices reached."""
-    order[0] = start
-    seen[start] = True
-    head = 0
-    tail = 1
-    while head < tail:
-        u = np.uint64(order[head])
-        head += 1
-        for q in range(ptr[u], ptr[u + 1]):
-            w = nbr[q]
-            if not seen[np.uint64(w)]:
-                seen[np.uint64(w)] = True
-                order[tail] = w
-                tail += 1
-    for i in range(tail):
-        seen[np.uint64(order[i])] = False
-    return tail
-
-
-@njit(cache=True)
 def grid_query(keys, starts, order, dims, lo, h, V, far, c0, c1, c2, R, r, out, dist):
     """Vertices within ``r`` of (c0, c1, c2) at the positions ``V``, from a uniform grid.
 
@@ -1094,6 +1071,38 @@ def _order_band(ri, ci, order, inv, lev):
 
 
 @njit(cache=True)
+def _cm_sweeps(ptr, ri, ci, u, m, o1, o2, lev1, lev2, inv):
+    """The two Cuthill–McKee sweeps over the m vertices of u's component: from u,
+    then from w, the last vertex reached from u, into o1 and o2; returns
+    (order, levels, True when it is w's) of the one with the narrower band,
+    u's on a tie (``inv`` is scratch)."""
+    lev1[:] = -1
+    _bfs_levels(ptr, ci, u, o1, lev1)
+    lev2[:] = -1
+    _bfs_levels(ptr, ci, o1[m - 1], o2, lev2)
+    if _order_band(ri, ci, o2[:m], inv, lev2) < _order_band(ri, ci, o1[:m], inv, lev1):
+        return o2, lev2, True
+    return o1, lev1, False
+
+
+@njit(cache=True)
+def cm_order(ptr, ri, ci, perm, inv, o2, lev1, lev2):
+    """``brush.Brush._local_rcm``'s order of a connected system: :func:`_cm_sweeps`
+    from u, the last vertex reached from vertex 0.  Writes ``perm`` and its
+    inverse ``inv``; returns False (nothing usable written) when the graph
+    (ptr, ci) is disconnected."""
+    k = perm.size
+    lev1[:] = -1
+    if _bfs_levels(ptr, ci, 0, perm, lev1) < k:
+        return False
+    if _cm_sweeps(ptr, ri, ci, perm[k - 1], k, perm, o2, lev1, lev2, inv)[2]:
+        perm[:] = o2
+    for i in range(k):
+        inv[perm[i]] = i
+    return True
+
+
+@njit(cache=True)
 def split_order(ptr, ri, ci, min_half, perm, inv, o1, o2, lev1, lev2, dims):
     """Order for :func:`split_solve`: [A, B, S].
 
@@ -1123,15 +1132,8 @@ def split_order(ptr, ri, ci, min_half, perm, inv, o1, o2, lev1, lev2, dims):
                 mpos = pos
                 msize = c
             pos += c
-    u = rest[mpos + msize - 1]      # the last vertex reached from the component's first
-    lev1[:] = -1
-    _bfs_levels(ptr, ci, u, o1, lev1)
-    lev2[:] = -1
-    _bfs_levels(ptr, ci, o1[msize - 1], o2, lev2)
-    if _order_band(ri, ci, o2[:msize], inv, lev2) < _order_band(ri, ci, o1[:msize], inv, lev1):
-        o, lev = o2, lev2
-    else:
-        o, lev = o1, lev1
+    # from the last vertex reached from the component's first
+    o, lev, _ = _cm_sweeps(ptr, ri, ci, rest[mpos + msize - 1], msize, o1, o2, lev1, lev2, inv)
     m = msize
     s = lev[o[m // 2]]
     a0 = m // 2
@@ -1197,6 +1199,21 @@ def split_order(ptr, ri, ci, min_half, perm, inv, o1, o2, lev1, lev2, dims):
     return 0
 
 
+@njit(cache=True)
+def _half_size(n, kd, t, nS):
+    """Doubles of a half's work space in :func:`split_solve`: band, right-hand sides, W, T."""
+    return (kd + 1) * n + 3 * n + t * nS + t * t
+
+
+@njit(inline="always")
+def _half_views(buf, p, n, kd, t, nS):
+    """A half's work space from ``buf[p:]``: band storage (ldab = kd + 1), y (n x 3, F), W (t x nS, F), T (t x t)."""
+    a = p + (kd + 1) * n
+    b = a + 3 * n
+    c = b + t * nS
+    return buf[p:a], buf[a:b], buf[b:c], buf[c:c + t * t]
+
+
 @njit(inline="always")
 def _half_ints(iv, n, kd, t, nS):
     """The integer arguments of a half's LAPACK/BLAS calls: n, kd, ldab, nrhs, t, nS (iv[6]: info)."""
@@ -1243,10 +1260,7 @@ def split_solve(pbtrf, tbtrs, potrf, potrs, trsm, syrk, gemm, set_threads,
     offs = np.empty(3, np.int64)    # start of each half's work space; S's
     offs[0] = 0
     for h in range(2):
-        n = dims[h]
-        kd = dims[3 + h]
-        t = dims[5 + h]
-        offs[h + 1] = offs[h] + (kd + 1) * n + 3 * n + t * nS + t * t
+        offs[h + 1] = offs[h] + _half_size(dims[h], dims[3 + h], dims[5 + h], nS)
     o = offs[2]
     SS = buf[o:o + nS * nS]
     rS = buf[o + nS * nS:o + nS * nS + 3 * nS]
@@ -1257,11 +1271,7 @@ def split_solve(pbtrf, tbtrs, potrf, potrs, trsm, syrk, gemm, set_threads,
         t = dims[5 + h]
         lo = 0 if h == 0 else nA         # the half's rows in the [A, B, S] order
         ld = kd + 1
-        p = offs[h]
-        ab = buf[p:p + ld * n]
-        y = buf[p + ld * n:p + ld * n + 3 * n]
-        W = buf[p + ld * n + 3 * n:p + ld * n + 3 * n + t * nS]
-        Tm = buf[p + ld * n + 3 * n + t * nS:p + ld * n + 3 * n + t * nS + t * t]
+        ab, y, W, Tm = _half_views(buf, offs[h], n, kd, t, nS)
         ab[:] = 0.0
         W[:] = 0.0
         Tm[:] = 0.0
@@ -1321,9 +1331,7 @@ def split_solve(pbtrf, tbtrs, potrf, potrs, trsm, syrk, gemm, set_threads,
     for g in range(2):
         n_ = dims[g]
         t_ = dims[5 + g]
-        p_ = offs[g] + (dims[3 + g] + 1) * n_
-        y_ = buf[p_:p_ + 3 * n_]
-        W_ = buf[p_ + 3 * n_:p_ + 3 * n_ + t_ * nS]
+        _, y_, W_, _ = _half_views(buf, offs[g], n_, dims[3 + g], t_, nS)
         jv[3] = t_
         jv[4] = n_
         syrk(Lc.ctypes, Tc.ctypes, jv[0:1].ctypes, jv[3:4].ctypes, mone.ctypes, W_.ctypes, jv[3:4].ctypes,
@@ -1346,11 +1354,7 @@ def split_solve(pbtrf, tbtrs, potrf, potrs, trsm, syrk, gemm, set_threads,
         kd = dims[3 + h]
         t = dims[5 + h]
         lo = 0 if h == 0 else nA
-        ld = kd + 1
-        p = offs[h]
-        ab = buf[p:p + ld * n]
-        y = buf[p + ld * n:p + ld * n + 3 * n]
-        W = buf[p + ld * n + 3 * n:p + ld * n + 3 * n + t * nS]
+        ab, y, W, _ = _half_views(buf, offs[h], n, kd, t, nS)
         iv = ints[h]
         _half_ints(iv, n, kd, t, nS)
         gemm(Nc.ctypes, Nc.ctypes, iv[4:5].ctypes, iv[3:4].ctypes, iv[5:6].ctypes, mone.ctypes, W.ctypes,
@@ -1368,5 +1372,4 @@ def split_solve(pbtrf, tbtrs, potrf, potrs, trsm, syrk, gemm, set_threads,
 def split_work_size(dims) -> int:
     """Doubles of work space :func:`split_solve` needs for ``dims``."""
     nA, nB, nS, kdA, kdB, tA, tB = (int(x) for x in dims)
-    return ((kdA + 1) * nA + 3 * nA + tA * nS + tA * tA + (kdB + 1) * nB + 3 * nB + tB * nS + tB * tB
-            + nS * nS + 3 * nS)
+    return _half_size(nA, kdA, tA, nS) + _half_size(nB, kdB, tB, nS) + nS * nS + 3 * nS

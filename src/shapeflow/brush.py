@@ -75,6 +75,7 @@ faster than fancy indexing for 1-D arrays and ~4× for rows of an (n, 3) array.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass, field
@@ -110,6 +111,13 @@ LOCAL_RCM_WORK = 1e7
 #: (2,400 unknowns): band 63 ~1.9-2.9 ms, the same system padded to 65 ~1.5-2.0 ms, despite the
 #: 6% more flops; below ~56 the unblocked code's lower flop count wins.
 BLOCKED_BAND = (56, 65)
+
+
+def _lapack_band(bw: int, k: int) -> int:
+    """The band to give LAPACK for a band-``bw`` system of ``k`` unknowns (see BLOCKED_BAND)."""
+    return BLOCKED_BAND[1] if BLOCKED_BAND[0] <= bw < BLOCKED_BAND[1] and k > BLOCKED_BAND[1] else bw
+
+
 #: from this many unknowns, "auto" solves a dab with the split solver
 #: (:meth:`Brush._split`: two banded halves factored on two threads); below, one band.
 SPLIT_MIN = 1000
@@ -271,34 +279,30 @@ class _SingleThreadBLAS:
         return False
 
 
-_SPLIT_ROUTINES: dict = {}
-
-
+@functools.cache
 def _split_routines():
     """ctypes pointers to the LAPACK/BLAS routines of the split solver (SciPy's
     ``cython_lapack``/``cython_blas``) and OpenBLAS's thread-local thread count
     setter, or None where any is missing (the one-band solver is used then)."""
-    if "fns" not in _SPLIT_ROUTINES:
-        _SPLIT_ROUTINES["fns"] = None
-        try:
-            import ctypes
+    if _SingleThreadBLAS._find() != "local":
+        return None
+    try:
+        import ctypes
 
-            from numba.extending import get_cython_function_address
+        from numba.extending import get_cython_function_address
 
-            vp = ctypes.c_void_p
-            fns = []
-            for mod, name, nargs in (("lapack", "dpbtrf", 6), ("lapack", "dtbtrs", 11), ("lapack", "dpotrf", 5),
-                                     ("lapack", "dpotrs", 8), ("blas", "dtrsm", 11), ("blas", "dsyrk", 10),
-                                     ("blas", "dgemm", 13)):
-                addr = get_cython_function_address("scipy.linalg.cython_" + mod, name)
-                fns.append(ctypes.CFUNCTYPE(None, *([vp] * nargs))(addr))
-            if _SingleThreadBLAS._find() == "local":
-                addr = ctypes.cast(_SingleThreadBLAS._setter, vp).value
-                fns.append(ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_int)(addr))
-                _SPLIT_ROUTINES["fns"] = tuple(fns)
-        except Exception:  # pragma: no cover - depends on the SciPy build
-            pass
-    return _SPLIT_ROUTINES["fns"]
+        vp = ctypes.c_void_p
+        fns = []
+        for mod, name, nargs in (("lapack", "dpbtrf", 6), ("lapack", "dtbtrs", 11), ("lapack", "dpotrf", 5),
+                                 ("lapack", "dpotrs", 8), ("blas", "dtrsm", 11), ("blas", "dsyrk", 10),
+                                 ("blas", "dgemm", 13)):
+            addr = get_cython_function_address("scipy.linalg.cython_" + mod, name)
+            fns.append(ctypes.CFUNCTYPE(None, *([vp] * nargs))(addr))
+        addr = ctypes.cast(_SingleThreadBLAS._setter, vp).value
+        fns.append(ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_int)(addr))
+    except Exception:  # pragma: no cover - depends on the SciPy build
+        return None
+    return tuple(fns)
 
 
 def _sq_norms(D: np.ndarray) -> np.ndarray:
@@ -393,12 +397,16 @@ def _renumbered(mesh: Mesh, perm: np.ndarray, inv: np.ndarray) -> Mesh:
     return Mesh.from_csr(mesh.vertices[perm], t.face_sizes[forder], fi[ent])
 
 
+def _row_ptr(rows: np.ndarray, n: int, dtype=np.int64) -> np.ndarray:
+    """CSR row pointer (n+1) of entries with row numbers ``rows`` (grouped by row)."""
+    ptr = np.zeros(n + 1, dtype=dtype)
+    np.cumsum(np.bincount(rows, minlength=n), out=ptr[1:])
+    return ptr
+
+
 def _csr_by(keys: np.ndarray, n: int):
     """Stable grouping of positions by key: (ptr (n+1), order)."""
-    order = np.argsort(keys, kind="stable")
-    ptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(keys, minlength=n), out=ptr[1:])
-    return ptr, order
+    return _row_ptr(keys, n), np.argsort(keys, kind="stable")
 
 
 def _tri_geometry(VT: np.ndarray, tv: np.ndarray):
@@ -862,7 +870,7 @@ class Brush(_BrushBase):
 
                 raise OptionalDependencyError("cholespy", "cholesky", "the Cholesky solver")
         self.solver = solver
-        self._ab_buf = None    # band storage reused by the banded solves (see _banded)
+        self._work_buf = None  # work space reused by the banded and split solves (see _work)
         self._build()
 
     # --- parameters ------------------------------------------------------------
@@ -906,8 +914,7 @@ class Brush(_BrushBase):
         self._ttri = np.zeros(T, dtype=bool)            # triangles that are whole triangle faces
         self._ttri[np.flatnonzero(t.face_sizes[tface] == 3)] = True
         # face -> its triangles (triangles are numbered face by face)
-        self._ft_ptr = np.zeros(t.n_faces + 1, dtype=np.int64)
-        np.cumsum(np.bincount(tface, minlength=t.n_faces), out=self._ft_ptr[1:])
+        self._ft_ptr = _row_ptr(tface, t.n_faces)
         # vertex -> faces
         self._vf_ptr, order = _csr_by(t.face_indices, n)
         self._vf_face = t.corner_face[order]
@@ -1382,9 +1389,7 @@ class Brush(_BrushBase):
                 if bw2 < bw:
                     perm, bw, ru, cu = p, bw2, lo, hi
             if method == "banded" or k * bw * bw <= BANDED_MAX_WORK:
-                stored = bw   # the band LAPACK sees (see BLOCKED_BAND); the report keeps the true one
-                if BLOCKED_BAND[0] <= bw < BLOCKED_BAND[1] and k > BLOCKED_BAND[1]:
-                    stored = BLOCKED_BAND[1]
+                stored = _lapack_band(bw, k)   # the report keeps the true band
                 if perm is None:
                     X = self._banded(k, ru, cu, vu, diag, rhs, stored)
                 else:
@@ -1441,20 +1446,13 @@ class Brush(_BrushBase):
 
         K = kernels.get(k, min_size=0)
         if grouped and K is not None:   # the same searches, compiled, without a CSR matrix
-            ptr = np.zeros(k + 1, dtype=np.int64)
-            np.cumsum(np.bincount(ri, minlength=k), out=ptr[1:])
-            o = np.empty(k, np.int64)
-            seen = np.zeros(k, dtype=bool)
-            if K.bfs_order(ptr, ci, 0, o, seen) == k:
-                perm = np.empty(k, np.int64)
-                K.bfs_order(ptr, ci, o[k - 1], perm, seen)
-                perm2 = o                                  # free again
-                K.bfs_order(ptr, ci, perm[k - 1], perm2, seen)
-                return Brush._narrower(k, ri, ci, perm, perm2)
+            perm, inv = np.empty(k, np.int64), np.empty(k, np.int64)
+            o2, lev1, lev2 = np.empty((3, k), np.int64)
+            if K.cm_order(_row_ptr(ri, k), ri, ci, perm, inv, o2, lev1, lev2):
+                return perm, inv
         # float64 data: the graph routines would otherwise convert (copy) it
         if grouped:
-            ptr = np.zeros(k + 1, dtype=np.int32)
-            np.cumsum(np.bincount(ri, minlength=k), out=ptr[1:])
+            ptr = _row_ptr(ri, k, np.int32)
             G = sp.csr_matrix((np.ones(ri.size), ci.astype(np.int32), ptr), shape=(k, k))
         else:
             G = sp.csr_matrix((np.ones(ri.size), (ri, ci)), shape=(k, k))
@@ -1493,7 +1491,7 @@ class Brush(_BrushBase):
         separator S, a dense Schur complement); the levels before it (CM
         order) and after it (reversed) are the halves, so only their trailing
         rows couple to S; other components join the smaller half.  Same flops as one band of
-        the same width, but each thread factors half the rows: on 31
+        the same width, but each thread factors half the rows: on 36
         captured 2,400-unknown dab systems, 1.1–2.3 ms against 1.6–3.8 ms for
         the one-band solve (reordering included).  The band reported is the
         wider half's.
@@ -1502,16 +1500,13 @@ class Brush(_BrushBase):
         fns = None if K is None else _split_routines()
         if fns is None or K.get_num_threads() < 2:
             return None
-        ptr = np.zeros(k + 1, dtype=np.int64)
-        np.cumsum(np.bincount(ri, minlength=k), out=ptr[1:])
         perm, inv, o1, o2, lev1, lev2 = np.empty((6, k), np.int64)
         dims = np.empty(7, np.int64)
-        if K.split_order(ptr, ri, ci, max(64, k // 5), perm, inv, o1, o2, lev1, lev2, dims) != 0:
+        if K.split_order(_row_ptr(ri, k), ri, ci, max(64, k // 5), perm, inv, o1, o2, lev1, lev2, dims) != 0:
             return None
         band = int(max(dims[3], dims[4]))
-        for h in range(2):       # the band LAPACK sees (see BLOCKED_BAND)
-            if BLOCKED_BAND[0] <= dims[3 + h] < BLOCKED_BAND[1] and dims[h] > BLOCKED_BAND[1]:
-                dims[3 + h] = BLOCKED_BAND[1]
+        for h in range(2):
+            dims[3 + h] = _lapack_band(int(dims[3 + h]), int(dims[h]))
         buf = self._work(K.split_work_size(dims))
         X = np.empty((k, 3))
         with _SingleThreadBLAS():
@@ -1523,16 +1518,16 @@ class Brush(_BrushBase):
         return X, "split", band
 
     #: largest work space (doubles) a brush keeps between dabs (16 MB)
-    _AB_KEEP = 2_000_000
+    _WORK_KEEP = 2_000_000
 
     def _work(self, size: int) -> np.ndarray:
         """``size`` doubles of work space, reused dab after dab when not too large
         (fresh memory costs page faults: ~0.35 ms of a 2,600-vertex dab's ~2.4 ms solve)."""
-        buf = self._ab_buf
+        buf = self._work_buf
         if buf is None or buf.size < size:
             buf = np.empty(size)
-            if size <= self._AB_KEEP:
-                self._ab_buf = buf
+            if size <= self._WORK_KEEP:
+                self._work_buf = buf
         return buf[:size]
 
     def _banded(self, k, ru, cu, vu, diag, rhs, bw):
