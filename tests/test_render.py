@@ -352,7 +352,7 @@ def test_image_up_axis_option(tmp_path, capsys):
         a = np.asarray(Image.open(png).convert("L"))
         right = a[a.shape[0] // 8:, a.shape[1] // 2:] < 200   # the subdivided panel, below its title
         rows, cols = np.flatnonzero(right.any(axis=1)), np.flatnonzero(right.any(axis=0))
-        heights[up] = (rows.ptp(), cols.ptp())
+        heights[up] = (np.ptp(rows), np.ptp(cols))
     capsys.readouterr()
     assert heights["z"][0] > heights["z"][1]           # upright
     assert heights["y"][0] < heights["y"][1]           # lying down

@@ -414,6 +414,13 @@ class FlowSolver:
             X[bsys.idx] = bsys.solver.solve(rhs, V[bsys.idx], overwrite_b=True)
         return X
 
+    @staticmethod
+    def _note_solver(system: _System | None, report: FlowReport) -> None:
+        """Carry a solver's fallback (CG short of its tolerance, redone by LU) into the report."""
+        if system is not None and system.solver.stats.fallback:
+            report.notes.append(system.solver.stats.fallback)
+            report.solver = system.solver.method if system.idx is None else report.solver
+
     def _step(self, V: np.ndarray, lam: float, lam_b: float, isys: _System | None,
               bsys: _System | None, boundary: np.ndarray, axes: np.ndarray, report: FlowReport) -> np.ndarray:
         X = self._solve_boundary(V, bsys, copy=False)   # V itself when there is no boundary block
@@ -426,10 +433,12 @@ class FlowSolver:
                 for k in range(3):
                     rhs[:, k] += np.bincount(r, e * X[s, k], minlength=V.shape[0])
             Xi = isys.solver.solve(rhs, X, overwrite_b=True)   # rhs is ours: the CG's residual
-            if isys.solver.method == "cg":
+            if isys.solver.method == "cg" or isys.solver.stats.fallback:
                 report.cg_iterations.append(isys.solver.stats.iterations)
             Xi[held] = X[held]                 # exactly, not to the solver's tolerance
             X = Xi
+        self._note_solver(bsys, report)
+        self._note_solver(isys, report)
         if not np.all(np.isfinite(X)):
             bad = ~np.isfinite(X).all(axis=1)
             X[bad] = V[bad]

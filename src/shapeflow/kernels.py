@@ -12,7 +12,8 @@ that small meshes never pay numba's import (~0.5 s on first use in a
 process; compiled code is cached on disk after the very first run).  The
 choice depends only on the size, so a given mesh always takes the same path.
 
-Switches: the environment variable ``SHAPEFLOW_KERNELS=0`` turns them off;
+Switches: the environment variable ``SHAPEFLOW_KERNELS=0`` turns them off,
+``SHAPEFLOW_KERNELS=force`` uses them at every size (tests);
 :func:`enabled` does the same in code (``with kernels.enabled(False): ...``).
 
 Memory pages: NumPy asks Linux for transparent huge pages (``madvise``) on
@@ -42,7 +43,10 @@ import threading
 #: Smallest problem (vertices or unknowns) for which the kernels are used.
 MIN_SIZE = 50_000
 
-_state = {"on": os.environ.get("SHAPEFLOW_KERNELS", "1").strip().lower() not in ("0", "false", "no", "off"),
+_ENV = os.environ.get("SHAPEFLOW_KERNELS", "1").strip().lower()
+#: ``SHAPEFLOW_KERNELS=force`` uses the kernels at every size (the test suite runs that way in CI,
+#: so the compiled paths are checked on the small meshes of the tests too)
+_state = {"on": _ENV not in ("0", "false", "no", "off"), "force": _ENV == "force",
           "module": None, "tried": False}
 
 
@@ -67,7 +71,7 @@ def _load():
 
 def get(size: int, *, min_size: int | None = None):
     """The kernels module when available and ``size`` >= ``min_size`` (default :data:`MIN_SIZE`), else None."""
-    if size < (MIN_SIZE if min_size is None else min_size):
+    if size < (MIN_SIZE if min_size is None else min_size) and not _state["force"]:
         return None
     return _load()
 

@@ -51,6 +51,11 @@ def estimate_cg_iterations(kappa: float, rtol: float = DEFAULT_RTOL) -> float:
     return 0.5 * np.sqrt(max(kappa, 1.0)) * np.log(2.0 / rtol) + 1.0
 
 
+def cg_maxiter(n: int) -> int:
+    """The default cap on CG iterations for n unknowns."""
+    return max(200, 10 * int(np.sqrt(n)) + 100)
+
+
 def choose_method(n: int, kappa: float, n_solves: int, rtol: float = DEFAULT_RTOL) -> str:
     """Pick the back end expected to be fastest.
 
@@ -65,8 +70,13 @@ def choose_method(n: int, kappa: float, n_solves: int, rtol: float = DEFAULT_RTO
         return "lu" if n_solves > 1 or kappa > 1e4 else "cg"
     cg_cost = estimate_cg_iterations(kappa, rtol) * n_solves
     factor_cost = 185.0 * np.sqrt(n / 126_000.0)
-    if cholesky_available() and cg_cost > factor_cost + 3.0 * n_solves:
-        return "cholesky"
+    if cholesky_available():
+        if cg_cost > factor_cost + 3.0 * n_solves:
+            return "cholesky"
+        return "cg"
+    # SuperLU (no cholespy) where CG is expected to run past its iteration cap (it would fall back anyway)
+    if estimate_cg_iterations(kappa, rtol) > cg_maxiter(n):
+        return "lu"
     return "cg"
 
 
@@ -76,13 +86,18 @@ class SolveStats:
     iterations: int = 0   # CG iterations of the last solve
     solves: int = 0
     factorizations: int = 0
+    fallback: str = ""    # why CG gave way to LU ("" while it has not)
 
 
 class SPDSolver:
     """Solve ``A X = B`` repeatedly for one symmetric matrix ``A``.
 
     The factorisation (direct methods) is computed on the first solve and
-    reused; CG keeps its preconditioner.  ``diagonal``, when the caller
+    reused; CG keeps its preconditioner.  A CG solve that does not reach
+    ``rtol`` within its iteration cap is redone by SciPy's SuperLU, and the
+    solver stays on LU from then on; ``stats.fallback`` says why (the flow
+    copies it into its report), so no solve returns short of its tolerance
+    in silence.  ``diagonal``, when the caller
     already has it, saves extracting A's diagonal for the Jacobi
     preconditioner (it must equal ``A.diagonal()``).
     """
@@ -111,7 +126,13 @@ class SPDSolver:
         B = np.ascontiguousarray(B, dtype=np.float64)
         self.stats.solves += 1
         if self.method == "cg":
-            return self._cg(B, X0, overwrite_b)
+            X, converged, B_left = self._cg(B, X0, overwrite_b)
+            if converged:
+                return X
+            self.stats.fallback = (f"CG did not reach rtol={self.rtol:g} in {self.stats.iterations} iterations "
+                                   f"(n={self.A.shape[0]}): solved by LU instead")
+            self.method = self.stats.method = "lu"
+            B = B_left
         if self._factor is None:
             self._factorize()
         if self.method == "cholesky":
@@ -135,8 +156,11 @@ class SPDSolver:
 
             self._factor = splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A")
 
-    def _cg(self, B: np.ndarray, X0: np.ndarray | None, overwrite_b: bool = False) -> np.ndarray:
-        """Jacobi-PCG on all columns at once.
+    def _cg(self, B: np.ndarray, X0: np.ndarray | None, overwrite_b: bool = False):
+        """Jacobi-PCG on all columns at once; returns (X, converged, B).
+
+        ``B`` comes back as given (rebuilt as R + A·X where the compiled path
+        used it as the residual's storage) for a direct solve to take over.
 
         Stops when every column's preconditioned residual norm sqrt(rᵀM⁻¹r)
         fell below ``rtol`` × its initial value.  Vectors are stored
@@ -190,14 +214,14 @@ class SPDSolver:
             P *= beta[:, None]
             P += Z
         self.stats.iterations = it
-        _check_finite(X)
-        return X[0] if squeeze else np.ascontiguousarray(X.T)
+        converged = not (rz > tol2).any() and bool(np.all(np.isfinite(X)))
+        return (X[0] if squeeze else np.ascontiguousarray(X.T)), converged, B
 
     def _maxiter(self, n: int) -> int:
-        return self.maxiter or max(200, 10 * int(np.sqrt(n)) + 100)
+        return self.maxiter or cg_maxiter(n)
 
     def _cg_kernel(self, K, B: np.ndarray, X0: np.ndarray | None, squeeze: bool,
-                   overwrite_b: bool = False) -> np.ndarray:
+                   overwrite_b: bool = False):
         """The same Jacobi-PCG as :meth:`_cg`, compiled (both cores), (n, 3) layout."""
         A = self.A
         n = A.shape[0]
@@ -212,15 +236,16 @@ class SPDSolver:
             if X0 is not None:
                 X[:, :k] = np.asarray(X0, dtype=np.float64).reshape(n, k)
         data = np.ascontiguousarray(A.data, dtype=np.float64)
+        maxiter = self._maxiter(n)
+        reused = overwrite_b or B3 is not B
         self.stats.iterations = int(K.pcg3(A.indptr, A.indices, data, self._minv, B3, X, self.rtol,
-                                           self._maxiter(n), overwrite_b=overwrite_b or B3 is not B))
-        _check_finite(X)
-        return X[:, 0].copy() if squeeze else (X if k == 3 else X[:, :k].copy())
-
-
-def _check_finite(X: np.ndarray) -> None:
-    if not np.all(np.isfinite(X)):
-        raise FloatingPointError("CG produced non-finite values")
+                                           maxiter, overwrite_b=reused))
+        # the kernel stops at convergence or at the cap: reaching the cap counts as not converged
+        converged = self.stats.iterations < maxiter and bool(np.all(np.isfinite(X)))
+        if not converged and reused and B3 is B:   # B holds the residual R = B − A X: rebuild B
+            B = B3 + A @ X
+        Xk = X[:, 0].copy() if squeeze else (X if k == 3 else X[:, :k].copy())
+        return Xk, converged, B
 
 
 def chebyshev_coefficients(f, a: float, b: float, max_degree: int = 2048):
@@ -231,7 +256,8 @@ def chebyshev_coefficients(f, a: float, b: float, max_degree: int = 2048):
     error left after the terms 0..j.  The degree doubles from 64 until the last
     coefficients are at rounding level; coefficients below 2e-14 × Σ|c| (the
     interpolation's noise) are set to zero, so the tail of a resolved function
-    reaches 0.
+    reaches 0.  A function not resolved at ``max_degree`` gets ``tail = inf``
+    everywhere: no degree has a known bound, so no caller truncates it.
     """
     from numpy.polynomial import chebyshev
 
@@ -243,6 +269,8 @@ def chebyshev_coefficients(f, a: float, b: float, max_degree: int = 2048):
         if np.abs(c[-8:]).max() <= 2e-14 * scale or degree >= max_degree:
             break
         degree *= 2
+    if np.abs(c[-8:]).max() > 2e-14 * scale:
+        return c, np.full(c.size, np.inf)
     c[np.abs(c) < 2e-14 * scale] = 0.0
     ac = np.abs(c)
     tail = np.concatenate([np.cumsum(ac[::-1])[::-1][1:], [0.0]])
