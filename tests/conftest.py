@@ -53,3 +53,27 @@ def load_fixture_case(case: str) -> dict:
     out["params"] = json.loads(str(out["params"]))
     out["mesh"] = str(out["mesh"])
     return out
+
+
+# --------------------------------------------------------------------------
+# SHAPEFLOW_REQUIRE_BPY=1 (CI's Blender environment): Blender must be there,
+# and a test that would skip for want of Blender fails instead
+# --------------------------------------------------------------------------
+
+REQUIRE_BPY = os.environ.get("SHAPEFLOW_REQUIRE_BPY", "") == "1"
+
+
+def pytest_sessionstart(session):
+    import importlib.util
+
+    if REQUIRE_BPY and importlib.util.find_spec("bpy") is None:
+        raise pytest.UsageError("SHAPEFLOW_REQUIRE_BPY=1 but Blender's bpy module is not importable")
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    rep = outcome.get_result()
+    if REQUIRE_BPY and rep.skipped and "bpy" in str(rep.longrepr):
+        rep.outcome = "failed"
+        rep.longrepr = f"skipped for want of Blender although SHAPEFLOW_REQUIRE_BPY=1: {rep.longrepr}"
