@@ -85,6 +85,7 @@ import scipy.sparse as sp
 
 from . import kernels
 from .errors import ParameterError
+from . import params
 from .flow import _finite, resolve_weights
 from .mesh import Mesh
 from .operators import REL_EDGE_TOL, REL_SHAPE_TOL, _check_scheme, _structure
@@ -881,7 +882,7 @@ class Brush(_BrushBase):
 
     @lam.setter
     def lam(self, v) -> None:
-        self._lam = _finite("lam", v)
+        self._lam = params.lam("lam", v)
 
     @property
     def lam_border(self) -> float:
@@ -890,7 +891,7 @@ class Brush(_BrushBase):
 
     @lam_border.setter
     def lam_border(self, v) -> None:
-        self._lam_b = _finite("lam_border", v)
+        self._lam_b = params.lam("lam_border", v)
 
     # --- one-time set-up ----------------------------------------------------------
     def _build(self) -> None:

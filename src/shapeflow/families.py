@@ -89,6 +89,7 @@ import numpy as np
 
 from . import kernels
 from .errors import ParameterError
+from . import params
 from .flow import FlowReport, FlowSolver, _finite, check_run_options
 from .mesh import Mesh
 from .solvers import DEFAULT_RTOL, estimate_cg_iterations
@@ -363,7 +364,7 @@ class FamilyReport:
 def _check_lams(lams) -> np.ndarray:
     if isinstance(lams, (str, bytes)) or np.ndim(lams) != 1:
         raise ParameterError(f"lams must be a 1-D sequence of numbers (one λ per member), got {lams!r}")
-    vals = [_finite(f"lams[{i}]", x) for i, x in enumerate(lams)]
+    vals = [params.lam(f"lams[{i}]", x) for i, x in enumerate(lams)]
     if not vals:
         raise ParameterError("lams is empty: give at least one λ")
     return np.array(vals, dtype=np.float64)
@@ -415,9 +416,13 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
     (48, 'multishift')
     """
     t0 = time.perf_counter()
-    if strategy not in STRATEGIES:
+    if not isinstance(strategy, str) or strategy not in STRATEGIES:
         raise ParameterError(f"strategy must be one of {', '.join(STRATEGIES)}, got {strategy!r}")
     lam_arr = _check_lams(lams)
+    preserve_volume = params.flag("preserve_volume", preserve_volume)
+    return_report = params.flag("return_report", return_report)
+    if progress is not None and not callable(progress):
+        raise ParameterError(f"progress must be a callable(done, total) or None, got {progress!r}")
     fs = FlowSolver(mesh, lam_border=lam_border, normalized=normalized, weights=weights,
                     invert_weights=invert_weights, scheme=scheme, compat=compat, solver=solver, rtol=rtol)
     ax = check_run_options(iterations, update, axes, fs.blender)

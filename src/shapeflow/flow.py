@@ -53,7 +53,7 @@ from typing import Callable, Sequence
 import numpy as np
 import scipy.sparse as sp
 
-from . import kernels
+from . import kernels, params
 from .errors import ParameterError
 from .geometry import signed_volume
 from .mesh import Mesh
@@ -73,41 +73,25 @@ FLOW_SOLVERS = (*METHODS, "chebyshev")
 # --------------------------------------------------------------------------
 
 def _finite(name: str, x) -> float:
-    try:
-        v = float(x)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{name} must be a number, got {x!r}") from None
-    if not np.isfinite(v):
-        raise ParameterError(f"{name} must be finite, got {v}")
-    return v
+    return params.number(name, x)
 
 
-def _axes(axes) -> np.ndarray:
-    if isinstance(axes, str):
-        bad = set(axes.lower()) - set("xyz")
-        if bad:
-            raise ParameterError(f"axes must be letters from 'xyz', got {axes!r}")
-        return np.array([c in axes.lower() for c in "xyz"])
-    try:
-        a = [bool(x) for x in axes]
-    except TypeError:
-        raise ParameterError(f"axes must be three booleans or a string like 'xz', got {axes!r}") from None
-    if len(a) != 3:
-        raise ParameterError(f"axes must have three entries (x, y, z), got {len(a)}")
-    return np.array(a)
+#: From this |λ| on, the solution's conserved means are restored after each solve
+#: (:meth:`_System.restore_means`); below it the solvers' own accuracy is far below ``rtol``.
+MEAN_RESTORE_FROM = 1e6
+
+#: The most implicit steps one call takes (k steps of λ move about as far as one step of kλ).
+ITERATIONS_MAX = 100_000
 
 
 def check_run_options(iterations, update, axes, blender: bool) -> np.ndarray:
     """Validate the per-run options of the flow; returns the axes mask."""
-    if isinstance(iterations, bool) or not isinstance(iterations, (int, np.integer)):
-        raise ParameterError(f"iterations must be a non-negative integer, got {iterations!r}")
-    if iterations < 0:
-        raise ParameterError(f"iterations must be >= 0, got {iterations}")
-    if update not in UPDATES:
+    params.integer("iterations", iterations, lo=0, hi=ITERATIONS_MAX)
+    if not isinstance(update, str) or update not in UPDATES:
         raise ParameterError(f"update must be 'fixed' or 'recompute', got {update!r}")
     if blender and update != "fixed":
         raise ParameterError("compat='blender' keeps the operator of the first iteration (update='fixed')")
-    return _axes(axes)
+    return params.axes(axes)
 
 
 def resolve_weights(mesh: Mesh, weights, invert: bool = False) -> np.ndarray:
@@ -125,7 +109,7 @@ def resolve_weights(mesh: Mesh, weights, invert: bool = False) -> np.ndarray:
     else:
         try:
             w = np.asarray(weights, dtype=np.float64)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise ParameterError("weights must be numbers") from None
         if w.shape != (n,):
             raise ParameterError(f"weights must have shape ({n},) (one per vertex), got {w.shape}")
@@ -238,6 +222,54 @@ class _System:
         self.idx = idx
         self.local = local
         self.held = np.flatnonzero(~free) if idx is None else None   # interior system: rows kept as they are
+        self._modes = None
+
+    def restore_means(self, X: np.ndarray, V: np.ndarray) -> None:
+        """Put back, in place, the exact C-weighted mean of every free part that couples to nothing fixed.
+
+        On such a part K the rows of A sum to c (A = C + D − W, and D − W has
+        zero row sums), so Σ_K c_i x_i = Σ_K c_i v_i holds exactly for the
+        solution.  A direct solver's rounding error, amplified by the
+        condition number ~|λ|, lies almost entirely in that constant mode (the
+        system is singular but for C there): at |λ| = 1e12 it moved the mean by
+        ~1e-6 of the displacement.  Restoring the mean removes it.  ``X``, ``V``
+        are the system's rows (all n for the interior, ``idx`` for the boundary).
+        """
+        if self._modes is None:
+            self._modes = self._free_parts()
+        labels, k = self._modes
+        if k == 0:
+            return
+        sel = labels >= 0
+        lab, c = labels[sel], self.c[sel]
+        cw = np.bincount(lab, c, minlength=k)
+        for q in range(X.shape[1]):
+            shift = (np.bincount(lab, c * V[sel, q], minlength=k) - np.bincount(lab, c * X[sel, q], minlength=k)) / cw
+            X[sel, q] += shift[lab]
+
+    def _free_parts(self):
+        """Labels (-1: not in such a part) and count of the free parts that couple to nothing fixed."""
+        from scipy.sparse.csgraph import connected_components
+
+        A = self.A.tocsr()
+        rows = np.flatnonzero(self.free) if self.idx is None else np.arange(A.shape[0])
+        sub = A[rows][:, rows]
+        k, lab = connected_components(sub, directed=False)
+        bad = np.zeros(k, bool)
+        r = self.coupling[0]
+        if r.size:   # parts with a term moved to the right-hand side: their mean is not conserved
+            pos = np.full(self.free.shape[0], -1)
+            pos[rows if self.idx is None else self.idx] = np.arange(rows.size)
+            bad[lab[pos[r]]] = True
+        # rows that do not sum to c (e.g. Blender's indefinite rows): no conservation to restore
+        excess = np.abs(np.asarray(sub.sum(axis=1)).ravel() - self.c[rows])
+        scale = np.asarray(abs(sub).sum(axis=1)).ravel()
+        bad[lab[excess > 1e-9 * scale]] = True
+        keep = ~bad
+        new = np.cumsum(keep) - 1
+        labels = np.full(A.shape[0], -1)
+        labels[rows] = np.where(keep[lab], new[lab], -1)
+        return labels, int(keep.sum())
 
 
 def _max_row_distance(A: np.ndarray, B: np.ndarray, chunk: int = 4096) -> float:
@@ -285,20 +317,20 @@ class FlowSolver:
                  compat: str | None = None, solver: str = "auto", rtol: float = DEFAULT_RTOL):
         if not isinstance(mesh, Mesh):
             raise ParameterError(f"expected a shapeflow.Mesh, got {type(mesh).__name__}")
-        if compat not in COMPAT_MODES:
+        if not isinstance(compat, (str, type(None))) or compat not in COMPAT_MODES:
             raise ParameterError(f"unknown compat mode {compat!r}; choose 'blender' or None (paper)")
         self.blender = compat == "blender"
         if self.blender and scheme not in (None, "blender"):
             raise ParameterError(f"compat='blender' uses Blender's weights; scheme={scheme!r} is not allowed with it")
         self.scheme = _check_scheme(scheme or ("blender" if self.blender else "tqlbo"))
-        if solver not in FLOW_SOLVERS:
+        if not isinstance(solver, str) or solver not in FLOW_SOLVERS:
             raise ParameterError(f"unknown solver {solver!r}; choose one of {', '.join(FLOW_SOLVERS)}")
         self.mesh = mesh
-        self.lam_border = _finite("lam_border", lam_border)
-        self.normalized = bool(normalized)
-        self.w = resolve_weights(mesh, weights, invert_weights)
+        self.lam_border = params.lam("lam_border", lam_border)
+        self.normalized = params.flag("normalized", normalized)
+        self.w = resolve_weights(mesh, weights, params.flag("invert_weights", invert_weights))
         self.solver_method = solver
-        self.rtol = float(rtol)
+        self.rtol = params.rtol(rtol)
         self._op0: _Operator | None = None
         self._coord_scale = float(np.abs(mesh.vertices).max()) if mesh.n_vertices else 1.0
 
@@ -411,7 +443,10 @@ class FlowSolver:
                 lr = bsys.local[r]
                 for k in range(3):
                     rhs[:, k] += np.bincount(lr, e * V[s, k], minlength=bsys.idx.size)
-            X[bsys.idx] = bsys.solver.solve(rhs, V[bsys.idx], overwrite_b=True)
+            Xb = bsys.solver.solve(rhs, V[bsys.idx], overwrite_b=True)
+            if abs(self.lam_border) >= MEAN_RESTORE_FROM:
+                bsys.restore_means(Xb, V[bsys.idx])
+            X[bsys.idx] = Xb
         return X
 
     @staticmethod
@@ -436,6 +471,8 @@ class FlowSolver:
             if isys.solver.method == "cg" or isys.solver.stats.fallback:
                 report.cg_iterations.append(isys.solver.stats.iterations)
             Xi[held] = X[held]                 # exactly, not to the solver's tolerance
+            if abs(lam) >= MEAN_RESTORE_FROM:
+                isys.restore_means(Xi, V)
             X = Xi
         self._note_solver(bsys, report)
         self._note_solver(isys, report)
@@ -581,7 +618,10 @@ class FlowSolver:
         The returned mesh carries a :class:`FlowReport` as ``result.report``.
         """
         t0 = time.perf_counter()
-        lam = _finite("lam", lam)
+        lam = params.lam("lam", lam)
+        preserve_volume = params.flag("preserve_volume", preserve_volume)
+        if progress is not None and not callable(progress):
+            raise ParameterError(f"progress must be a callable(done, total) or None, got {progress!r}")
         lam_b = self.lam_border
         ax = check_run_options(iterations, update, axes, self.blender)
         report = FlowReport(lam=lam, lam_border=lam_b, iterations=int(iterations),

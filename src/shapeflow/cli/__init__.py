@@ -28,6 +28,8 @@ def build_parser() -> argparse.ArgumentParser:
         "'example:NAME' for a mesh bundled with shapeflow (example:spot, example:spot_cage).",
     )
     parser.add_argument("--version", action="version", version=f"shapeflow {__version__}")
+    parser.add_argument("--debug", action="store_true",
+                        help="show the Python traceback of an unexpected error (for a bug report)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         try:
@@ -37,6 +39,9 @@ def build_parser() -> argparse.ArgumentParser:
                 continue
             raise
         mod.register(sub)
+    for cmd in sub.choices.values():   # `shapeflow flow ... --debug` as well as `shapeflow --debug flow ...`
+        cmd.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                         help="show the Python traceback of an unexpected error")
     return parser
 
 
@@ -70,6 +75,16 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"shapeflow {args.command}: interrupted", file=sys.stderr)
         return 130
+    except RecursionError:
+        print(f"shapeflow {args.command}: error: input nested too deeply", file=sys.stderr)
+        return 2
+    except Exception as exc:   # a bug, not bad input: one line, the traceback on request
+        if args.debug:
+            raise
+        msg = str(exc).splitlines()[0][:300] if str(exc) else ""
+        print(f"shapeflow {args.command}: internal error: {type(exc).__name__}: {msg} "
+              f"(rerun with --debug for the traceback, and please report it)", file=sys.stderr)
+        return 70
 
 
 if __name__ == "__main__":  # pragma: no cover
