@@ -77,6 +77,7 @@ from __future__ import annotations
 
 import functools
 import math
+import threading
 import time
 from dataclasses import dataclass, field
 
@@ -127,6 +128,15 @@ SPLIT_MIN = 1000
 # --------------------------------------------------------------------------
 # parameters
 # --------------------------------------------------------------------------
+
+def _serialised(fn):
+    """Method decorator: one call at a time per brush (the brush's re-entrant lock)."""
+    @functools.wraps(fn)
+    def wrapper(self, *args, **kwargs):
+        with self._lock:
+            return fn(self, *args, **kwargs)
+    return wrapper
+
 
 def _positive(name: str, x) -> float:
     v = _finite(name, x)
@@ -496,6 +506,7 @@ class _BrushBase:
                  undo_limit: int = 64, rebuild_fraction: float = 0.15):
         if not isinstance(mesh, Mesh):
             raise ParameterError(f"expected a shapeflow.Mesh, got {type(mesh).__name__}")
+        self._lock = threading.RLock()   # thread model: every public call holds it (see the class docstring)
         self._mesh0 = mesh
         n = mesh.n_vertices
         self._n = n
@@ -532,31 +543,37 @@ class _BrushBase:
 
     # --- parameters ------------------------------------------------------------
     @property
+    @_serialised
     def radius(self) -> float:
         """Brush radius (model units); may change between dabs."""
         return self._radius
 
     @radius.setter
+    @_serialised
     def radius(self, r) -> None:
         self._radius = _positive("radius", r)
 
     @property
+    @_serialised
     def falloff(self):
         """None (constant), "smooth" ((1 − t²)², t = d/r) or a callable f(t)."""
         return self._falloff_spec
 
     @falloff.setter
+    @_serialised
     def falloff(self, f) -> None:
         self._falloff_fn = _check_falloff(f)
         self._falloff_spec = f
 
     @property
+    @_serialised
     def weights(self) -> np.ndarray:
         """Per-vertex weights W_p in [0, 1] (a copy)."""
         return self._w[self._inv]
 
     # --- state -------------------------------------------------------------------
     @property
+    @_serialised
     def mesh(self) -> Mesh:
         """The current sculpted mesh (built on demand, cached until the next change)."""
         if self._mesh_cache is None:
@@ -569,6 +586,7 @@ class _BrushBase:
         return self._mesh0
 
     @property
+    @_serialised
     def vertices(self) -> np.ndarray:
         """Current positions, a read-only view (it changes with later dabs; copy to keep)."""
         v = self._Vx.view()
@@ -576,11 +594,13 @@ class _BrushBase:
         return v
 
     @property
+    @_serialised
     def pending(self) -> Dab | None:
         """The previewed dab waiting for :meth:`commit` or :meth:`discard`."""
         return self._pending
 
     @property
+    @_serialised
     def preview_mesh(self) -> Mesh:
         """The current mesh with the pending preview applied (the mesh itself if none)."""
         if self._pending is None:
@@ -662,6 +682,7 @@ class _BrushBase:
             self._far_list[self._far_count:need] = new
             self._far_count = need
 
+    @_serialised
     def inside(self, center) -> np.ndarray:
         """Indices of the vertices inside the sphere at ``center`` (current positions)."""
         c = _as_point(center)
@@ -671,6 +692,7 @@ class _BrushBase:
     def _compute(self, c: np.ndarray) -> Dab:  # pragma: no cover - abstract
         raise NotImplementedError
 
+    @_serialised
     def preview(self, center) -> Dab:
         """Compute a dab at ``center`` without applying it ("Drag Dot").
 
@@ -685,6 +707,7 @@ class _BrushBase:
         self._pending = dab
         return dab
 
+    @_serialised
     def commit(self) -> np.ndarray:
         """Apply the pending preview; returns the indices it moved (empty if none)."""
         dab = self._pending
@@ -701,10 +724,12 @@ class _BrushBase:
         self.last = dab
         return dab.indices
 
+    @_serialised
     def discard(self) -> None:
         """Drop the pending preview (the mesh is unchanged)."""
         self._pending = None
 
+    @_serialised
     def dab(self, center) -> np.ndarray:
         """Apply one dab at ``center``; returns the indices of the vertices it moved.
 
@@ -713,6 +738,7 @@ class _BrushBase:
         self.preview(center)
         return self.commit()
 
+    @_serialised
     def stroke(self, points, spacing: float | None = 0.25) -> np.ndarray:
         """Dabs along a polyline, one every ``spacing × radius`` of arc length.
 
@@ -734,6 +760,7 @@ class _BrushBase:
             return np.zeros(0, np.int64)
         return np.unique(np.concatenate(moved))
 
+    @_serialised
     def dab_centers(self, points, spacing: float | None = 0.25) -> np.ndarray:
         """The dab centres :meth:`stroke` would use for ``points``."""
         if spacing is None:
@@ -777,6 +804,7 @@ class _BrushBase:
         self._moved(idx)
         return idx
 
+    @_serialised
     def undo(self) -> np.ndarray:
         """Undo the last dab or stroke (exactly); returns the indices restored."""
         self._pending = None
@@ -786,6 +814,7 @@ class _BrushBase:
         self._redo.append(group)
         return self._perm[self._restore(group, use_old=True)]
 
+    @_serialised
     def redo(self) -> np.ndarray:
         """Redo the last undone dab or stroke; returns the indices changed."""
         self._pending = None
@@ -796,10 +825,12 @@ class _BrushBase:
         return self._perm[self._restore(group, use_old=False)]
 
     @property
+    @_serialised
     def can_undo(self) -> bool:
         return bool(self._undo)
 
     @property
+    @_serialised
     def can_redo(self) -> bool:
         return bool(self._redo)
 
@@ -841,6 +872,14 @@ class Brush(_BrushBase):
         Rebuild the spatial index when a vertex moved more than this × radius
         since it was built.
 
+    Thread model
+    ------------
+    A brush holds working positions, caches and solver work space, so its
+    calls are serialised: every public method and property takes the
+    brush's (re-entrant) lock, and a call from a second thread waits until
+    the first one returns.  Several threads may share one brush safely,
+    without any speed-up; use one brush per thread for parallel work.
+
     Examples
     --------
     >>> import shapeflow as sf
@@ -876,20 +915,24 @@ class Brush(_BrushBase):
 
     # --- parameters ------------------------------------------------------------
     @property
+    @_serialised
     def lam(self) -> float:
         """λ of each dab (< 0 enhances, > 0 smooths); may change between dabs."""
         return self._lam
 
     @lam.setter
+    @_serialised
     def lam(self, v) -> None:
         self._lam = params.lam("lam", v)
 
     @property
+    @_serialised
     def lam_border(self) -> float:
         """λ_b for boundary vertices of open meshes (0: fixed)."""
         return self._lam_b
 
     @lam_border.setter
+    @_serialised
     def lam_border(self, v) -> None:
         self._lam_b = params.lam("lam_border", v)
 
@@ -1111,6 +1154,7 @@ class Brush(_BrushBase):
         tris, _ = _csr_ranges(self._ft_ptr, faces)
         self._update_triangles(tris)
 
+    @_serialised
     def refresh(self) -> None:
         """Recompute every cached weight from the current positions (O(n)).
 
@@ -1133,6 +1177,7 @@ class Brush(_BrushBase):
         if short.any():
             self._vlock += np.bincount(E_[short].reshape(-1), minlength=self._n)
 
+    @_serialised
     def pair_weights(self):
         """Current cotangent weights as ``(pairs, w)``: pairs (P, 2) of mesh vertex
         indices (each row sorted, rows sorted) and w_ij, from the cache."""
@@ -1141,6 +1186,7 @@ class Brush(_BrushBase):
         return pr[order], self._pw[:self._P][order]
 
     @property
+    @_serialised
     def locked(self) -> np.ndarray:
         """(n,) bool: vertices touching a degenerate triangle or a too-short edge
         (kept fixed, as :func:`shapeflow.flow` does), at the current positions."""
@@ -1156,6 +1202,7 @@ class Brush(_BrushBase):
         return np.bincount(np.repeat(np.arange(S.size), tl), self._tarea[self._vt_tri[te]], minlength=S.size)
 
     # --- the dab ------------------------------------------------------------------------
+    @_serialised
     def region(self, center) -> dict:
         """Inside, rim and free vertices of a dab at ``center`` (nothing is solved).
 
@@ -1566,7 +1613,7 @@ class InflateBrush(_BrushBase):
     Each dab moves vertex i by ``strength · radius · f(d_i/r) · w_i · n_i``
     (``n_i``: unit area-weighted vertex normal at the current positions, as
     :func:`shapeflow.geometry.vertex_normals`); negative strength deflates.
-    Same API as :class:`Brush`.
+    Same API and thread model (calls serialised by a lock) as :class:`Brush`.
     """
 
     def __init__(self, mesh: Mesh, *, strength: float = 0.05, radius: float, falloff=None, weights=None,
@@ -1581,11 +1628,13 @@ class InflateBrush(_BrushBase):
         self._tri_buf = None               # compiled cache update: the moved triangles
 
     @property
+    @_serialised
     def strength(self) -> float:
         """Displacement per dab as a fraction of the radius (< 0 deflates)."""
         return self._strength
 
     @strength.setter
+    @_serialised
     def strength(self, v) -> None:
         self._strength = _finite("strength", v)
 

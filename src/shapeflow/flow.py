@@ -46,6 +46,7 @@ paper (default, ``compat=None``)
 
 from __future__ import annotations
 
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Callable, Sequence
@@ -303,6 +304,10 @@ class FlowSolver:
     Use it for repeated runs (several λ, iterations, brush dabs); ``flow()``
     is a thin wrapper.  Options are those of :func:`flow`.
 
+    Thread model: :meth:`run` may be called from several threads at once.
+    Its only shared state is the operator at the input positions, built
+    once under a lock; everything else a run uses is its own.
+
     Examples
     --------
     >>> import shapeflow as sf
@@ -332,14 +337,17 @@ class FlowSolver:
         self.solver_method = solver
         self.rtol = params.rtol(rtol)
         self._op0: _Operator | None = None
+        self._op0_lock = threading.Lock()
         self._coord_scale = float(np.abs(mesh.vertices).max()) if mesh.n_vertices else 1.0
 
     # --- operator and systems ----------------------------------------------
     def operator(self, V: np.ndarray | None = None) -> _Operator:
         """The operator at the input positions (cached) or at ``V``."""
         if V is None:
-            if self._op0 is None:
-                self._op0 = _build_operator(self.mesh, self.mesh.vertices, self.scheme, self.blender, self.normalized)
+            with self._op0_lock:
+                if self._op0 is None:
+                    self._op0 = _build_operator(self.mesh, self.mesh.vertices, self.scheme, self.blender,
+                                                self.normalized)
             return self._op0
         return _build_operator(self.mesh, V, self.scheme, self.blender, self.normalized)
 
