@@ -20,6 +20,14 @@ class ParameterError(ShapeflowError):
     """A parameter (λ, iterations, weights, options...) is out of its domain."""
 
 
+class OutputError(ShapeflowError, OSError):
+    """An output file cannot be written (missing folder, read-only file, bundled data...).
+
+    The message names the path the caller gave (never a temporary file).  It
+    is an ``OSError`` too, so ``except OSError`` keeps working.
+    """
+
+
 class OptionalDependencyError(ImportError):
     """An optional feature was used without its extra installed."""
 

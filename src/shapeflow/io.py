@@ -62,6 +62,7 @@ quads) are read as strided arrays.
 
 from __future__ import annotations
 
+import errno
 import os
 import re
 import stat
@@ -73,11 +74,11 @@ from typing import BinaryIO, Callable
 
 import numpy as np
 
-from .errors import MeshError
+from .errors import MeshError, OutputError
 from .mesh import Mesh
 
 __all__ = [
-    "load", "save", "load_weights", "save_weights",
+    "load", "save", "load_weights", "save_weights", "atomic_write", "output_target",
     "MeshFormat", "FORMATS", "register_format", "WEIGHT_EXTENSIONS",
 ]
 
@@ -152,13 +153,16 @@ def load(path, *, format: str | None = None) -> Mesh:
         raise MeshError(f"{name}: malformed {fmt.name} file ({type(exc).__name__}: {exc})") from exc
 
 
-def save(path, mesh: Mesh, *, format: str | None = None, binary: bool | None = None) -> None:
+def save(path, mesh: Mesh, *, format: str | None = None, binary: bool | None = None, force: bool = False) -> None:
     """Write ``mesh`` atomically (format from the extension, or ``format=``).
 
     ``binary`` applies to PLY (default True: binary little-endian; False:
     ASCII); asking for a binary OBJ or OFF is an error.  OBJ and OFF drop the
-    mesh's attributes.  OSErrors (no such directory, disk full...) propagate;
-    nothing is left behind and an existing file is not touched.
+    mesh's attributes.  A path that cannot be written (no such folder,
+    read-only file without ``force``, disk full...) raises
+    :class:`~shapeflow.errors.OutputError` (a ``ValueError`` and an
+    ``OSError``) naming ``path``; nothing is left behind and an existing file
+    is not touched.  A symbolic link is followed: its target is replaced.
     """
     if not isinstance(mesh, Mesh):
         raise TypeError(f"save() needs a shapeflow.Mesh, got {type(mesh).__name__}")
@@ -167,7 +171,7 @@ def save(path, mesh: Mesh, *, format: str | None = None, binary: bool | None = N
     if binary and not fmt.binary:
         raise MeshError(f"{name}: {fmt.name} has no binary variant")
     try:
-        _atomic_write(name, lambda f: fmt.writer(f, mesh, binary=binary))
+        atomic_write(name, lambda f: fmt.writer(f, mesh, binary=binary), force=force)
     except MeshError as exc:  # writers' messages do not know the file name
         raise MeshError(f"{name}: {exc}") from None
 
@@ -189,7 +193,10 @@ def load_weights(path, n_vertices: int) -> np.ndarray:
     if ext == ".npy":
         try:
             with open(name, "rb") as f:
+                _check_npy_header(f, name, n_vertices)
                 w = np.load(f, allow_pickle=False)
+        except MeshError:
+            raise
         except OSError as exc:
             raise _os_error(name, exc) from exc
         except (ValueError, EOFError) as exc:
@@ -213,8 +220,29 @@ def load_weights(path, n_vertices: int) -> np.ndarray:
     return _check_weights(name, w, n_vertices, where)
 
 
-def save_weights(path, weights) -> None:
-    """Write weights atomically to ``.npy`` or ``.txt`` (one number a line, exact)."""
+def _check_npy_header(f, name: str, n_vertices: int) -> None:
+    """Check a .npy header against the file's size and the mesh before NumPy allocates anything; rewinds ``f``."""
+    fmt = np.lib.format
+    try:
+        version = fmt.read_magic(f)
+        if version not in ((1, 0), (2, 0)):
+            raise ValueError(f".npy format version {version[0]}.{version[1]} is not supported; use 1.0 or 2.0")
+        shape, _, dtype = (fmt.read_array_header_1_0 if version == (1, 0) else fmt.read_array_header_2_0)(f)
+    except (ValueError, EOFError, SyntaxError, TypeError) as exc:
+        raise MeshError(f"{name}: not a valid .npy array file ({exc})") from None
+    if len(shape) not in (1, 2) or (len(shape) == 2 and shape[1] != 1):
+        raise MeshError(f"{name}: weights must be a 1-D array, got shape {shape}")
+    if shape[0] != n_vertices:
+        raise MeshError(f"{name}: has {shape[0]} weights but the mesh has {n_vertices} vertices")
+    left = os.fstat(f.fileno()).st_size - f.tell()
+    if dtype.itemsize and shape[0] * dtype.itemsize > left:
+        raise MeshError(f"{name}: the header declares {shape[0]} values of {dtype.itemsize} bytes, but only "
+                        f"{left} bytes follow (truncated file)")
+    f.seek(0)
+
+
+def save_weights(path, weights, *, force: bool = False) -> None:
+    """Write weights atomically to ``.npy`` or ``.txt`` (one number a line, exact); ``force`` as in :func:`save`."""
     name = os.fspath(path)
     ext = os.path.splitext(name)[1].lower()
     if ext not in WEIGHT_EXTENSIONS:
@@ -227,9 +255,9 @@ def save_weights(path, weights) -> None:
         raise MeshError(f"{name}: weights must be a 1-D array, got shape {w.shape}")
     w = _check_weights(name, w, w.size, lambda i: f"value {i}")
     if ext == ".npy":
-        _atomic_write(name, lambda f: np.save(f, w, allow_pickle=False))
+        atomic_write(name, lambda f: np.save(f, w, allow_pickle=False), force=force)
     else:
-        _atomic_write(name, lambda f: _write_rows(f, "%r\n", w[:, None]))
+        atomic_write(name, lambda f: _write_rows(f, "%r\n", w[:, None]), force=force)
 
 
 def _check_weights(name: str, w: np.ndarray, n: int, where) -> np.ndarray:
@@ -276,27 +304,83 @@ def _umask() -> int:
     return mask
 
 
-def _atomic_write(name: str, write: Callable[[BinaryIO], None]) -> None:
-    """Write through ``write(f)`` to a temporary file, fsync, rename onto ``name``."""
-    directory = os.path.dirname(os.path.abspath(name))
+def _bundled_data_dir() -> str:
+    return os.path.realpath(os.path.join(os.path.dirname(os.path.abspath(__file__)), "data"))
+
+
+def output_target(path, *, force: bool = False) -> str:
+    """Check that ``path`` can be written, before any work; returns the file a write replaces.
+
+    A symbolic link is followed to its final target, which is what gets
+    replaced (GNU's rule: the link stays a link).  Refused with an
+    :class:`~shapeflow.errors.OutputError` naming ``path``: a missing folder,
+    a directory, shapeflow's bundled example data (never written), a folder
+    without write permission, and a read-only file unless ``force``.
+    """
+    name = os.fspath(path)
+    if not name:
+        raise OutputError("the output path is empty")
+    target = os.path.realpath(name)
+    folder = os.path.dirname(target)
+    if os.path.isdir(target):
+        raise OutputError(f"{name}: is a directory, not a file")
+    if not os.path.isdir(folder):
+        shown = os.path.dirname(name) or folder
+        raise OutputError(f"{name}: the output folder {shown!r} does not exist")
+    if os.path.commonpath([folder, _bundled_data_dir()]) == _bundled_data_dir():
+        raise OutputError(f"{name}: is shapeflow's bundled example data, which is never written; "
+                          "choose another output path")
     try:
-        mode = stat.S_IMODE(os.stat(name).st_mode)
+        st = os.stat(target)
+    except FileNotFoundError:
+        st = None
+    except OSError as exc:
+        raise OutputError(f"{name}: cannot write: {exc.strerror or exc}") from None
+    if st is not None and not force and (not st.st_mode & 0o222 or not os.access(target, os.W_OK)):
+        raise OutputError(f"{name}: is read-only; pass --force (force=True) to replace it")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise OutputError(f"{name}: cannot write in the folder {folder!r} (permission denied)")
+    return target
+
+
+def atomic_write(name: str, write: Callable[[BinaryIO], None], *, force: bool = False) -> None:
+    """Write through ``write(f)`` to an unnamed temporary file, fsync, then rename it onto ``name``.
+
+    The file is created with ``O_TMPFILE`` where the platform has it: it has
+    no name until the data is complete, so even a killed process leaves
+    nothing behind; it gets a hidden name for the instant of the rename.
+    Elsewhere a named temporary file is removed on any exception (the CLI
+    turns SIGTERM and SIGHUP into one).  Errors name ``name``, not the
+    temporary file.
+    """
+    target = output_target(name, force=force)
+    directory = os.path.dirname(target)
+    try:
+        mode = stat.S_IMODE(os.stat(target).st_mode)
     except OSError:
         mode = 0o666 & ~_umask()
-    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(name) + ".", suffix=".tmp", dir=directory)
+    tmp = None
     try:
+        fd = _unnamed_file(directory)
+        if fd is None:
+            fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(target) + ".", suffix=".tmp", dir=directory)
         with os.fdopen(fd, "wb") as f:
             write(f)
             f.flush()
+            os.fchmod(f.fileno(), mode)
             os.fsync(f.fileno())
-        os.chmod(tmp, mode)
-        os.replace(tmp, name)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+            if tmp is None:   # give the finished file a name, for the rename only
+                tmp = _link_unnamed(f.fileno(), directory, os.path.basename(target))
+        os.replace(tmp, target)
+        tmp = None
+    except OSError as exc:
+        raise OutputError(f"{name}: cannot write: {exc.strerror or exc}") from exc
+    finally:
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except OSError:
+                pass
     try:  # make the rename durable (best effort, POSIX only)
         dfd = os.open(directory, os.O_RDONLY)
     except OSError:
@@ -307,6 +391,36 @@ def _atomic_write(name: str, write: Callable[[BinaryIO], None]) -> None:
         pass
     finally:
         os.close(dfd)
+
+
+def _unnamed_file(directory: str) -> int | None:
+    """A file descriptor of a new unnamed file in ``directory`` (Linux ``O_TMPFILE``), or None."""
+    flag = getattr(os, "O_TMPFILE", None)
+    if flag is None or not os.path.isdir("/proc/self/fd"):
+        return None
+    try:
+        return os.open(directory, flag | os.O_WRONLY, 0o600)
+    except OSError as exc:
+        if exc.errno in (errno.EOPNOTSUPP, errno.EISDIR, errno.EINVAL, errno.ENOENT):
+            return None   # the file system has no unnamed files: a named temporary file instead
+        raise
+
+
+def _link_unnamed(fd: int, directory: str, base: str) -> str:
+    """Give the unnamed file ``fd`` a fresh hidden name in ``directory``; returns the name."""
+    # linkat(..., AT_SYMLINK_FOLLOW): os.link takes that path only when given a dir_fd
+    dfd = os.open(directory, os.O_RDONLY)
+    try:
+        for _ in range(100):
+            tmp = os.path.join(directory, f".{base}.{os.urandom(6).hex()}.tmp")
+            try:
+                os.link(f"/proc/self/fd/{fd}", tmp, src_dir_fd=dfd, follow_symlinks=True)
+                return tmp
+            except FileExistsError:
+                continue
+    finally:
+        os.close(dfd)
+    raise FileExistsError(errno.EEXIST, "no free temporary name", directory)
 
 
 # --------------------------------------------------------------------------
@@ -474,7 +588,12 @@ def _build(name: str, vertices, sizes, indices, *, attributes=None,
 # OBJ
 # --------------------------------------------------------------------------
 
-_TAG_RE = re.compile(rb"[A-Za-z_][A-Za-z0-9_.\-]*")
+_TAG_START = np.zeros(256, dtype=bool)
+_TAG_START[np.frombuffer(b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_", np.uint8)] = True
+_TAG_CHAR = _TAG_START.copy()
+_TAG_CHAR[np.frombuffer(b"0123456789.-", np.uint8)] = True
+_NUMBER_START = np.zeros(256, dtype=bool)
+_NUMBER_START[np.frombuffer(b"0123456789.-+", np.uint8)] = True
 
 
 def _read_obj(data: bytes, name: str) -> Mesh:
@@ -490,9 +609,24 @@ def _read_obj(data: bytes, name: str) -> Mesh:
     is_v = (tlen == 1) & (c0 == ord("v"))
     is_f = ((tlen == 1) & (c0 == ord("f"))) | ((tlen == 2) & (c0 == ord("f")) & (c1 == ord("o")))
     common = (tlen == 2) & (c0 == ord("v")) & ((c1 == ord("t")) | (c1 == ord("n")))
-    for r in np.flatnonzero(~(is_v | is_f | common)).tolist():  # other tags: skipped if tag-like
-        if not _TAG_RE.fullmatch(txt.data, int(s[r]), int(s[r] + tlen[r])):
-            raise txt.error(rf[r], f"unrecognised line starting with {txt.token(rf[r])}")
+    other = np.flatnonzero(~(is_v | is_f | common))   # other tags (g, o, s, usemtl...): skipped if tag-like
+    if other.size:
+        so, lo = s[other], tlen[other]
+        # a tag must be a letter or '_' followed by letters, digits, '_', '.', '-'
+        chars = a[_ranges(so, lo)]
+        ok = _TAG_CHAR[chars]
+        first_ok = _TAG_START[a[so]]
+        tag_ok = first_ok & (np.add.reduceat(~ok, np.cumsum(lo) - lo) == 0 if chars.size else first_ok)
+        # an element tag glued to its first number ('f1 2 3', 'v0.5 1 2') is a typo, not a new tag
+        c1o = a[so + 1]
+        k = np.where((a[so] == ord("v")) & np.isin(c1o, np.frombuffer(b"tnp", np.uint8)) & (lo > 2), 2, 1)
+        glued = np.isin(a[so], np.frombuffer(b"vflp", np.uint8)) & (lo > k) & _NUMBER_START[a[so + k]]
+        bad = np.flatnonzero(~tag_ok | glued)
+        if bad.size:
+            r = int(other[bad[0]])
+            tok = txt.token(rf[r])
+            hint = " (a space missing after the tag?)" if glued[bad[0]] else ""
+            raise txt.error(rf[r], f"unrecognised line starting with {tok}{hint}")
 
     # vertices: x y z [w] or x y z r g b [a]
     vrec = np.flatnonzero(is_v)
@@ -707,6 +841,8 @@ def _parse_ply_header(header: str, name: str) -> tuple[str | None, list[_Element
         if not words or words[0] in ("comment", "obj_info"):
             continue
         key = words[0]
+        if not line.isascii():
+            raise MeshError(f"{name}: line {ln}: non-ASCII text outside a comment in the PLY header")
         err = lambda msg: MeshError(f"{name}: line {ln}: {msg}")  # noqa: E731
         if key == "format":
             if len(words) != 3 or words[1] not in _PLY_FORMATS:
@@ -714,12 +850,19 @@ def _parse_ply_header(header: str, name: str) -> tuple[str | None, list[_Element
                           "binary_big_endian 1.0'")
             order, seen_format = _PLY_FORMATS[words[1]], True
         elif key == "element":
-            if len(words) != 3 or not words[2].isdigit():
+            if len(words) != 3 or not words[2].isascii() or not words[2].isdigit():
                 raise err(f"bad element line {line.strip()!r}; expected 'element NAME COUNT'")
+            twin = next((el for el in elements if el.name == words[1]), None)
+            if twin is not None:
+                raise err(f"a second '{words[1]}' element (the first is on line {twin.line}); "
+                          "which one holds the mesh is ambiguous")
             elements.append(_Element(words[1], int(words[2]), ln, []))
         elif key == "property":
             if not elements:
                 raise err("property before any element")
+            if len(words) >= 3 and any(p.name == words[-1] for p in elements[-1].props):
+                raise err(f"property '{words[-1]}' of element '{elements[-1].name}' is declared twice; "
+                          "which one holds the values is ambiguous")
             if len(words) == 3 and words[1] in _PLY_TYPES:
                 elements[-1].props.append(_Prop(words[2], np.dtype(_PLY_TYPES[words[1]])))
             elif (len(words) == 5 and words[1] == "list" and words[2] in _PLY_TYPES
@@ -758,6 +901,11 @@ def _read_binary_element(buf: bytes, arr: np.ndarray, pos: int, el: _Element, na
     if n == 0:
         return {p.name: (np.zeros(0, np.int64), np.zeros(0, p.dtype)) if p.is_list else np.zeros(0, p.dtype)
                 for p in props}, pos
+    # never allocate from the declared count more than the bytes left can hold: every record
+    # takes at least its scalars and its lists' counts
+    least = sum(p.count_dtype.itemsize if p.is_list else p.dtype.itemsize for p in props)
+    if least and n > (L - pos) // least:
+        raise trunc(max(L - pos, 0) // least)
     if not any(p.is_list for p in props):
         dt = np.dtype([(f"p{i}", p.dtype) for i, p in enumerate(props)])
         if pos + n * dt.itemsize > L:
@@ -943,17 +1091,19 @@ def _read_ascii_element(txt: _Text, r0: int, el: _Element, name: str):
 def _read_ply(data: bytes, name: str) -> Mesh:
     if not data.strip():
         raise MeshError(f"{name}: empty file")
+    if data.startswith(b"\xef\xbb\xbf"):   # a UTF-8 byte-order mark (written by some editors)
+        data = data[3:]
     first_line = data.split(b"\n", 1)[0].strip()
     if first_line != b"ply":
         raise MeshError(f"{name}: line 1: not a PLY file (the first line must be 'ply')")
     m = _END_HEADER_RE.search(data)
     if not m:
         raise MeshError(f"{name}: PLY header has no 'end_header' line (truncated or not a PLY file)")
-    try:
-        header = data[:m.start()].decode("ascii").replace("\r", "")
+    try:   # comments and obj_info may hold any UTF-8 text; keywords are checked to be ASCII
+        header = data[:m.start()].decode("utf-8").replace("\r", "")
     except UnicodeDecodeError as exc:
         line = data.count(b"\n", 0, exc.start) + 1
-        raise MeshError(f"{name}: line {line}: PLY header is not ASCII text") from None
+        raise MeshError(f"{name}: line {line}: PLY header is not UTF-8 text") from None
     order, elements = _parse_ply_header(header, name)
     body = data[m.end():]
     found: dict[str, dict] = {}

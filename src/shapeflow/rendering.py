@@ -657,20 +657,12 @@ def _label_band(width: int, height: int, text: str, transparent: bool) -> np.nda
     return np.asarray(im)
 
 
-def save_png(path, image: np.ndarray) -> None:
-    """Write an (h, w, 3|4) uint8 array as a PNG (atomically: temporary file, then rename)."""
+def save_png(path, image: np.ndarray, *, force: bool = False) -> None:
+    """Write an (h, w, 3|4) uint8 array as a PNG, atomically (:func:`shapeflow.io.atomic_write`)."""
+    from .io import atomic_write
+
     Image, _, _ = _pil()
-    path = os.fspath(path)
-    d = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(d):
-        raise ParameterError(f"cannot write {path!r}: folder {d!r} does not exist")
-    tmp = f"{path}.tmp{os.getpid()}.png"
-    try:
-        Image.fromarray(image).save(tmp, format="PNG")
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    atomic_write(os.fspath(path), lambda f: Image.fromarray(image).save(f, format="PNG"), force=force)
 
 
 def _check_size(size) -> tuple[int, int]:

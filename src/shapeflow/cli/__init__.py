@@ -8,8 +8,11 @@ code 2, never a traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import signal
 import sys
+import threading
 
 from ..errors import OptionalDependencyError, ShapeflowError
 
@@ -47,6 +50,36 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP arrived: unwinds like Ctrl-C, so every pending output is removed."""
+
+    def __init__(self, signum: int):
+        super().__init__(signum)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def _termination_unwinds():
+    """Within the block, SIGTERM and SIGHUP raise :class:`Terminated` (the CLI process only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum, frame):
+        raise Terminated(signum)
+
+    old = {}
+    for name in ("SIGTERM", "SIGHUP"):
+        sig = getattr(signal, name, None)
+        if sig is not None:
+            old[sig] = signal.signal(sig, handler)
+    try:
+        yield
+    finally:
+        for sig, h in old.items():
+            signal.signal(sig, h)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -54,7 +87,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help(sys.stderr)
         return 2
     try:
-        return int(args.func(args) or 0)
+        with _termination_unwinds():
+            return int(args.func(args) or 0)
+    except Terminated as exc:
+        print(f"shapeflow {args.command}: terminated by {signal.Signals(exc.signum).name}; "
+              "nothing was left half-written", file=sys.stderr)
+        return 128 + exc.signum
     except BrokenPipeError:
         # the reader of our output went away (e.g. `shapeflow info x | head`): not an error to report
         import os

@@ -20,23 +20,44 @@ def eprint(*a, **kw) -> None:
     print(*a, file=sys.stderr, **kw)
 
 
-def resolve_output(input_arg: str, output: str, force: bool) -> str:
-    """Refuse to overwrite the input file unless forced."""
+def resolve_output(input_arg: str, output: str, force: bool, *others: str | None) -> str:
+    """Check every output path before any work; refuse to overwrite the input unless forced.
+
+    ``others`` are further outputs of the command (``--image``, ``--weights-out``).  Each must be
+    writable (:func:`shapeflow.io.output_target`): its folder exists, it is not bundled data, and
+    it is not read-only unless ``--force``.  Returns ``output``.
+    """
     import os
 
     from ..errors import ParameterError
+    from ..io import output_target
 
     if not input_arg.startswith("example:") and os.path.exists(output) and os.path.exists(input_arg) \
             and os.path.samefile(input_arg, output) and not force:
         raise ParameterError(f"output {output!r} is the input file; pass --force to overwrite it")
+    for path in (output, *others):
+        if path:
+            output_target(path, force=force)
     return output
 
 
-def save_mesh(path: str, mesh) -> None:
+def save_mesh(path: str, mesh, force: bool = False) -> None:
     """Write atomically (the I/O layer writes a temporary file, then renames it)."""
     from ..io import save
 
-    save(path, mesh)
+    save(path, mesh, force=force)
+
+
+def write_values(path: str, values, force: bool = False) -> None:
+    """Per-vertex values to ``.npy`` (exact) or text (one value a line, ``%.17g``), atomically."""
+    import numpy as np
+
+    from ..io import atomic_write
+
+    if path.lower().endswith(".npy"):
+        atomic_write(path, lambda f: np.save(f, values, allow_pickle=False), force=force)
+    else:
+        atomic_write(path, lambda f: np.savetxt(f, values, fmt="%.17g"), force=force)
 
 
 class progress_callback:

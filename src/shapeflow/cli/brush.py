@@ -43,7 +43,7 @@ def register(sub) -> None:
     p.add_argument("--area-normalized", action="store_true",
                    help="area-normalised operator (eq. 9) instead of the normalised one (eq. 10)")
     p.add_argument("--scheme", choices=["tqlbo", "blender"], default="tqlbo", help="cotangent weights")
-    p.add_argument("--force", action="store_true", help="allow OUTPUT to be the input file (overwrite it)")
+    p.add_argument("--force", action="store_true", help="allow OUTPUT to be the input file, or a read-only file (overwrite it)")
     p.add_argument("--quiet", "-q", action="store_true", help="no summary on stderr")
     add_image_options(p)
     p.set_defaults(func=run)
@@ -121,7 +121,7 @@ def run(args) -> int:
     from .flow import weights_arg
 
     stroke = read_stroke(args.stroke)
-    out_path = resolve_output(args.input, args.output, args.force)
+    out_path = resolve_output(args.input, args.output, args.force, args.image)
     if args.image:
         from ._images import _check
 
@@ -141,7 +141,7 @@ def run(args) -> int:
     moved = brush.stroke(centers, spacing=None)
     t2 = time.perf_counter()
     result = brush.mesh
-    save_mesh(out_path, result)
+    save_mesh(out_path, result, args.force)
     if args.image:
         from ._images import before_after
 

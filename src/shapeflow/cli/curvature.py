@@ -7,7 +7,7 @@ import os
 import numpy as np
 
 from ..errors import ParameterError
-from ._common import eprint, load_mesh_arg, resolve_output, save_mesh
+from ._common import eprint, load_mesh_arg, resolve_output, save_mesh, write_values
 
 VALUE_EXTS = (".npy", ".txt")
 
@@ -30,7 +30,7 @@ def register(sub) -> None:
     p.add_argument("--view", default="iso", help="view for --image (front, side, top, iso, AZ,EL; default iso)")
     p.add_argument("--up", choices=["y", "z"], default="y", help="the model's up axis for --image (default y)")
     p.add_argument("--size", default="800x600", metavar="WxH", help="size of --image (default 800x600)")
-    p.add_argument("--force", action="store_true", help="allow OUT to be the input file (overwrite it)")
+    p.add_argument("--force", action="store_true", help="allow OUT to be the input file, or a read-only file (overwrite it)")
     p.add_argument("--quiet", "-q", action="store_true", help="no summary on stderr")
     p.set_defaults(func=run)
 
@@ -50,16 +50,14 @@ def run(args) -> int:
         from ..rendering import require
 
         require()  # fail before writing anything
-    out = resolve_output(args.input, args.output, args.force)
+    out = resolve_output(args.input, args.output, args.force, args.image)
     mesh = load_mesh_arg(args.input)
     h = mean_curvature(mesh, area=args.area)
     result = mesh.with_attributes(curvature=h)
     if ext == ".ply":
-        save_mesh(out, result)
-    elif ext == ".npy":
-        np.save(out, h)
+        save_mesh(out, result, args.force)
     else:
-        np.savetxt(out, h, fmt="%.17g")
+        write_values(out, h, args.force)
     if args.image:
         from ..rendering import render
 

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
+from ..io import output_target
 from ._common import eprint, load_mesh_arg, progress_callback, save_mesh
 from .flow import _add_common, flow_kwargs
 
@@ -167,9 +168,15 @@ def run(args) -> int:
         if exist:
             raise ParameterError(f"{len(exist)} member file(s) already exist in {str(outdir)!r} "
                                  f"(first: {exist[0].name}); pass --force to overwrite them")
+    parent = outdir.resolve().parent
+    if not outdir.exists() and not parent.is_dir():
+        raise ParameterError(f"OUTDIR {str(outdir)!r}: its folder {str(parent)!r} does not exist")
     mesh = load_mesh_arg(args.input)
     kw = flow_kwargs(args, mesh)
-    outdir.mkdir(parents=True, exist_ok=True)
+    outdir.mkdir(exist_ok=True)
+    for p in (paths[0], image):   # every output writable before any work (the folder exists now)
+        if p:
+            output_target(p, force=args.force)
     # batches bound the memory of the positions held at once (one batch for any usual family)
     per_member = 2 * 24 * max(1, mesh.n_vertices)
     batch = max(1, BATCH_BYTES // per_member)
@@ -189,7 +196,7 @@ def run(args) -> int:
             reports.append(rep)
             done += len(idx)
             for i, V in zip(idx, shapes):
-                save_mesh(str(paths[i]), mesh.with_vertices(V))
+                save_mesh(str(paths[i]), mesh.with_vertices(V), args.force)
                 if image and i in panels:
                     kept[i] = V
                 done += 1

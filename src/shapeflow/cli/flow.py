@@ -31,7 +31,7 @@ def _add_common(p) -> None:
     p.add_argument("--update", choices=["fixed", "recompute"], default="fixed",
                    help="keep the first iteration's operator (Blender) or rebuild it every iteration")
     p.add_argument("--solver", choices=["auto", "cg", "cholesky", "lu", "chebyshev"], default="auto", help="linear solver")
-    p.add_argument("--force", action="store_true", help="allow OUTPUT to be the input file (overwrite it)")
+    p.add_argument("--force", action="store_true", help="allow OUTPUT to be the input file, or a read-only file (overwrite it)")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress or summary on stderr")
     add_image_options(p)
 
@@ -82,13 +82,13 @@ def run(args) -> int:
         if args.strength < 0:
             raise ParameterError(f"--strength must be >= 0, got {args.strength}")
         lam = args.sign * args.strength
-    out_path = resolve_output(args.input, args.output, args.force)
+    out_path = resolve_output(args.input, args.output, args.force, args.image)
     t0 = time.perf_counter()
     mesh = load_mesh_arg(args.input)
     kw = flow_kwargs(args, mesh)
     with progress_callback(args.iterations, "flow", quiet=args.quiet) as cb:
         result = flow(mesh, lam, progress=cb, **kw)
-    save_mesh(out_path, result)
+    save_mesh(out_path, result, args.force)
     if not args.quiet:
         r = result.report
         eprint(f"shapeflow {args.command}: λ={lam:g}, {args.iterations} iteration(s), {mesh.n_vertices} vertices: "

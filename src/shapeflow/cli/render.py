@@ -93,8 +93,12 @@ def mesh_label(arg: str) -> str:
 
 
 def check_png(path: str, option: str = "output") -> str:
+    """A .png path that can be written (its folder exists...), checked before any work."""
+    from ..io import output_target
+
     if not path.lower().endswith(".png"):
         raise ParameterError(f"{option} {path!r} must be a .png file")
+    output_target(path)
     return path
 
 

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import eprint, load_mesh_arg
+from ._common import eprint, load_mesh_arg, resolve_output, save_mesh, write_values
 from ._images import add_image_options
 
 
@@ -37,6 +37,7 @@ def register(sub) -> None:
                    "line); replaces weights stored in IN")
     p.add_argument("--weights-out", metavar="FILE",
                    help="also write the subdivided weights to FILE (.npy or text)")
+    p.add_argument("--force", action="store_true", help="allow OUT to be the input file, or a read-only file")
     add_image_options(p)
     p.set_defaults(func=run)
 
@@ -58,22 +59,13 @@ def _load_weights(path: str, n: int) -> np.ndarray:
     return w
 
 
-def _save_weights(path: str, w: np.ndarray) -> None:
-    p = Path(path)
-    if p.suffix.lower() == ".npy":
-        np.save(p, w)
-    else:
-        np.savetxt(p, w, fmt="%.9g")
-
-
 def run(args) -> int:
     from ..errors import ParameterError
     from ..subdivision import subdivide
 
     if args.levels < 0:
         raise ParameterError(f"--levels must be >= 0; got {args.levels}")
-    from ..io import save
-
+    resolve_output(args.input, args.output, args.force, args.image, args.weights_out)
     mesh = load_mesh_arg(args.input)
     if args.weights:
         mesh = mesh.with_weights(_load_weights(args.weights, mesh.n_vertices))
@@ -81,11 +73,11 @@ def run(args) -> int:
     out = subdivide(mesh, args.levels, scheme=args.scheme, boundary=args.boundary,
                     weights_rule=args.weights_rule)
     dt = time.perf_counter() - t0
-    save(args.output, out)
+    if args.weights_out and out.weights is None:
+        raise ParameterError("--weights-out: the mesh has no weights (give --weights)")
+    save_mesh(args.output, out, args.force)
     if args.weights_out:
-        if out.weights is None:
-            raise ParameterError("--weights-out: the mesh has no weights (give --weights)")
-        _save_weights(args.weights_out, out.weights)
+        write_values(args.weights_out, out.weights, args.force)
     eprint(
         f"subdivide: {mesh.n_vertices} vertices, {mesh.n_faces} faces -> "
         f"{out.n_vertices} vertices, {out.n_faces} faces "
