@@ -120,6 +120,9 @@ def _lapack_band(bw: int, k: int) -> int:
     return BLOCKED_BAND[1] if BLOCKED_BAND[0] <= bw < BLOCKED_BAND[1] and k > BLOCKED_BAND[1] else bw
 
 
+#: the most dabs one stroke is resampled to (a dab takes ~1-5 ms: about an hour of sculpting)
+MAX_DABS = 1_000_000
+
 #: from this many unknowns, "auto" solves a dab with the split solver
 #: (:meth:`Brush._split`: two banded halves factored on two threads); below, one band.
 SPLIT_MIN = 1000
@@ -206,11 +209,18 @@ def resample_polyline(points, step: float) -> np.ndarray:
     """
     P = _as_points(points)
     step = _positive("spacing", step)
-    seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
-    cum = np.concatenate([[0.0], np.cumsum(seg)])
+    with np.errstate(over="ignore", invalid="ignore"):
+        seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
+        cum = np.concatenate([[0.0], np.cumsum(seg)])
     total = float(cum[-1])
+    if not math.isfinite(total):
+        raise ParameterError("points: the stroke is too long to measure in double precision")
     if total == 0.0:
         return P[:1].copy()
+    count = total / step + 1.0
+    if count > MAX_DABS:
+        raise ParameterError(f"spacing: a step of {step:.3g} along a stroke of length {total:.3g} gives "
+                             f"{count:.3g} dabs; at most {MAX_DABS:,} (use a larger spacing)")
     s = np.arange(int(math.floor(total / step + 1e-9)) + 1) * step
     s = np.minimum(s, total)
     j = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, len(seg) - 1)

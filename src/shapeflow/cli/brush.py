@@ -62,18 +62,32 @@ def _number(d: dict, key: str, where: str, *, required: bool = False, default=No
     return float(v)
 
 
+#: the largest stroke file read (a point is ~30 bytes of JSON: ~2 million points)
+MAX_STROKE_BYTES = 64 << 20
+def _json_int(s: str):
+    # JSON integers of any length: as floats (a 5,000-digit one becomes inf and is refused as not finite)
+    return float(s)
+
+
 def read_stroke(path: str) -> dict:
     """Read and check a stroke file; every problem is one ParameterError line."""
+    import os
+
     try:
+        size = os.path.getsize(path)
+        if size > MAX_STROKE_BYTES:
+            raise ParameterError(f"stroke file '{path}' has {size:,} bytes; at most {MAX_STROKE_BYTES:,}")
         with open(path, "rb") as f:
-            text = f.read().decode("utf-8")
+            text = f.read().decode("utf-8-sig")
     except UnicodeDecodeError:
         raise ParameterError(f"stroke file '{path}' is not UTF-8 text") from None
     try:
-        d = json.loads(text)
+        d = json.loads(text, parse_int=_json_int, parse_float=float)
     except json.JSONDecodeError as exc:
         raise ParameterError(f"stroke file '{path}' is not valid JSON: {exc.msg} "
                              f"(line {exc.lineno}, column {exc.colno})") from None
+    except RecursionError:   # the decoder's own guard against deep nesting (a stroke needs 2 levels)
+        raise ParameterError(f"stroke file '{path}': JSON nested too deeply; a stroke needs 2 levels") from None
     where = f"stroke file '{path}'"
     if not isinstance(d, dict):
         raise ParameterError(f"{where}: expected a JSON object like "
@@ -97,8 +111,9 @@ def read_stroke(path: str) -> dict:
         for k in ("lambda", "lambda_border"):
             if d.get(k) is not None:
                 raise ParameterError(f"{where}: \"{k}\" is for the enhance brush; the inflate brush uses \"strength\"")
-    sp_ = d.get("spacing", 0.25)
-    out["spacing"] = None if sp_ is None else _number(d, "spacing", where, positive=True)
+    # spacing: 0.25 when the key is absent, null = one dab per given point
+    out["spacing"] = None if "spacing" in d and d["spacing"] is None else \
+        _number(d, "spacing", where, positive=True, default=0.25)
     fo = d.get("falloff")
     if fo not in (None, "smooth", "none", "constant"):
         raise ParameterError(f"{where}: \"falloff\" must be null or \"smooth\", got {json.dumps(fo)}")
