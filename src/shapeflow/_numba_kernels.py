@@ -298,9 +298,17 @@ def _first_bad_face(fi, offsets, n, nt):
                 va = fi[a]
                 if va < 0 or va >= n:
                     bad = True
-                for b in range(a + 1, e):
-                    if fi[b] == va:
+            if not bad and e - s <= 16:      # small faces: compare the pairs
+                for a in range(s, e):
+                    for b in range(a + 1, e):
+                        if fi[b] == fi[a]:
+                            bad = True
+            elif not bad:                    # large faces: sort a copy, O(k log k), not O(k²)
+                srt = np.sort(fi[s:e])
+                for a in range(srt.size - 1):
+                    if srt[a] == srt[a + 1]:
                         bad = True
+                        break
             if bad:
                 first[t] = f
                 break
