@@ -427,6 +427,11 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
                     invert_weights=invert_weights, scheme=scheme, compat=compat, solver=solver, rtol=rtol)
     ax = check_run_options(iterations, update, axes, fs.blender)
     k, n = lam_arr.size, mesh.n_vertices
+    from .budget import check_memory
+
+    # the (k, n, 3) result, plus the shared solve's work (~4 such blocks of one batch of members)
+    check_memory(f"a family of {k:,} members of {n:,} vertices", 24.0 * n * (k + 4 * min(k, 64)),
+                 parameter="lams")
     report = FamilyReport(lams=lam_arr, path="unchanged", reason="", lam_border=fs.lam_border,
                           iterations=int(iterations), mode="blender" if fs.blender else "paper",
                           scheme=fs.scheme, update=update, member_iterations=np.zeros(k, np.int64))
