@@ -84,10 +84,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from . import kernels
+from . import kernels, params
 from .errors import ParameterError
-from . import params
 from .flow import _finite, resolve_weights
+from .geometry import refresh_normals
 from .mesh import Mesh
 from .operators import REL_EDGE_TOL, REL_SHAPE_TOL, _check_scheme, _structure
 
@@ -587,7 +587,7 @@ class _BrushBase:
     def mesh(self) -> Mesh:
         """The current sculpted mesh (built on demand, cached until the next change)."""
         if self._mesh_cache is None:
-            self._mesh_cache = self._mesh0.with_vertices(self._Vx)
+            self._mesh_cache = refresh_normals(self._mesh0.with_vertices(self._Vx))
         return self._mesh_cache
 
     @property
@@ -617,7 +617,7 @@ class _BrushBase:
             return self.mesh
         V = self._Vx.copy()
         V[self._pending.indices] = self._pending.positions
-        return self._mesh0.with_vertices(V)
+        return refresh_normals(self._mesh0.with_vertices(V))
 
     # --- spatial queries ---------------------------------------------------------------
     def _ensure_tree(self) -> None:

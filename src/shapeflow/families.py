@@ -87,10 +87,10 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from . import kernels
+from . import kernels, params
 from .errors import ParameterError
-from . import params
 from .flow import FlowReport, FlowSolver, _finite, check_run_options
+from .geometry import refresh_normals
 from .mesh import Mesh
 from .solvers import DEFAULT_RTOL, estimate_cg_iterations
 
@@ -517,7 +517,7 @@ def family_meshes(mesh: Mesh, lams: Sequence[float], **options) -> list[Mesh]:
     shapes, report = family(mesh, lams, return_report=True, **options)
     out = []
     for lam, V in zip(report.lams, shapes):
-        m = mesh.with_vertices(V)
+        m = refresh_normals(mesh.with_vertices(V))
         m.lam = float(lam)
         m.report = report
         out.append(m)

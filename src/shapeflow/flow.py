@@ -56,7 +56,7 @@ import scipy.sparse as sp
 
 from . import kernels, params
 from .errors import ParameterError
-from .geometry import signed_volume
+from .geometry import NORMAL_ATTRIBUTES, refresh_normals, signed_volume
 from .mesh import Mesh
 from .operators import _assemble, _check_scheme
 from .solvers import (DEFAULT_RTOL, METHODS, SPDSolver, chebyshev_coefficients, chebyshev_steps, choose_method,
@@ -693,6 +693,9 @@ class FlowSolver:
         else:   # V is a new array of this run: handed over without a copy (validated if not finite)
             out = self.mesh._with_own_vertices(V)
         report.max_displacement = _max_row_distance(V, V0)
+        if V is not V0 and any(k in out.attributes for k in NORMAL_ATTRIBUTES):
+            out = refresh_normals(out)
+            report.notes.append("vertex normals (nx, ny, nz) recomputed from the new surface")
         report.seconds = time.perf_counter() - t0
         out.report = report
         return out

@@ -138,3 +138,23 @@ def mean_edge_length(mesh, vertices: np.ndarray | None = None) -> float:
         return 0.0
     v = mesh.vertices if vertices is None else vertices
     return float(np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1).mean())
+
+
+#: Vertex attributes that hold the surface normal (PLY's convention).  They are recomputed from
+#: the surface whenever shapeflow moves the vertices, never carried over stale.
+NORMAL_ATTRIBUTES = ("nx", "ny", "nz")
+
+
+def refresh_normals(mesh):
+    """``mesh`` with its normal attributes (nx, ny, nz), if it has them, recomputed from its positions.
+
+    Unit area-weighted vertex normals (:func:`vertex_normals`), each attribute
+    in its own type.  Returns the mesh unchanged when it has none of them.
+    """
+    have = [k for k in NORMAL_ATTRIBUTES if k in mesh.attributes]
+    if not have:
+        return mesh
+    nrm = vertex_normals(mesh)
+    return mesh.with_attributes(**{k: nrm[:, NORMAL_ATTRIBUTES.index(k)].astype(mesh.attributes[k].dtype)
+                                   for k in have})
+

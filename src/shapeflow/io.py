@@ -1143,8 +1143,22 @@ def _read_ply(data: bytes, name: str) -> Mesh:
         if axis not in scal:
             raise MeshError(f"{name}: line {vel.line}: the vertex element has no scalar '{axis}' property")
     vertices = np.column_stack([np.asarray(vals[a], dtype=np.float64) for a in "xyz"])
-    attributes = {p.name: np.asarray(vals[p.name], dtype=np.float64)
-                  for p in vel.props if not p.is_list and p.name not in ("x", "y", "z")}
+    # attributes keep the file's type (ASCII integers are parsed as float64, checked, then cast back)
+    attributes = {}
+    for p in vel.props:
+        if p.is_list or p.name in ("x", "y", "z"):
+            continue
+        v = np.asarray(vals[p.name])
+        dt = p.dtype.newbyteorder("=")
+        if dt.kind in "iu" and v.dtype.kind == "f":
+            info = np.iinfo(dt)
+            bad = np.flatnonzero((v != np.rint(v)) | (v < info.min) | (v > info.max))
+            if bad.size:
+                i = int(bad[0])
+                raise MeshError(_at(name, vloc(i) if vloc else f"vertex {i}",
+                                    f"property '{p.name}' is {np.dtype(dt).name} but has the value {v[i]!r}"))
+        # ASCII floats keep the text's precision (parsed as float64); everything else its declared type
+        attributes[p.name] = v if (dt.kind == "f" and v.dtype == np.float64) else v.astype(dt)
     nv = vertices.shape[0]
     fel = next((el for el in elements if el.name == "face"), None)
     if fel is None:
@@ -1199,24 +1213,45 @@ def _ply_attributes(mesh: Mesh) -> dict[str, np.ndarray]:
     return out
 
 
+#: NumPy type -> PLY type of an attribute (64-bit integers: int where they fit, else double)
+_PLY_NAMES = {"i1": "char", "u1": "uchar", "i2": "short", "u2": "ushort", "i4": "int", "u4": "uint",
+              "f4": "float", "f8": "double"}
+
+
+def _ply_type(values: np.ndarray) -> np.dtype:
+    dt = values.dtype
+    if dt.kind in "iu" and dt.itemsize == 8:
+        fits = values.size == 0 or (int(values.min()) >= -2**31 and int(values.max()) < 2**31)
+        return np.dtype("i4") if fits else np.dtype("f8")
+    key = f"{dt.kind}{dt.itemsize}"
+    return np.dtype(key) if key in _PLY_NAMES else np.dtype("f8")
+
+
 def _write_ply(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None, byteorder: str = "<") -> None:
     binary = True if binary is None else bool(binary)
     attrs = _ply_attributes(mesh)
+    types = {k: _ply_type(v) for k, v in attrs.items()}
     sizes = mesh.face_sizes
     count_type = "uchar" if sizes.size == 0 or int(sizes.max()) <= 255 else "int"
     fmt = ("binary_little_endian" if byteorder == "<" else "binary_big_endian") if binary else "ascii"
     head = ["ply", f"format {fmt} 1.0", "comment written by shapeflow",
             f"element vertex {mesh.n_vertices}",
             "property double x", "property double y", "property double z"]
-    head += [f"property double {k}" for k in attrs]
+    head += [f"property {_PLY_NAMES[f'{types[k].kind}{types[k].itemsize}']} {k}" for k in attrs]
     head += [f"element face {mesh.n_faces}", f"property list {count_type} int vertex_indices", "end_header"]
     f.write(("\n".join(head) + "\n").encode("ascii"))
-    columns = np.column_stack([mesh.vertices] + [v[:, None] for v in attrs.values()])
-    if not binary:
-        _write_rows(f, " ".join(["%r"] * columns.shape[1]) + "\n", columns)
+    if not binary:   # integers exactly as %d (every PLY integer type fits a double exactly)
+        columns = np.column_stack([mesh.vertices] + [v.astype(np.float64)[:, None] for v in attrs.values()])
+        fmts = ["%r"] * 3 + ["%d" if types[k].kind in "iu" else "%r" for k in attrs]
+        _write_rows(f, " ".join(fmts) + "\n", columns)
         _write_faces_text(f, mesh, "", 0, with_size=True)
         return
-    f.write(np.ascontiguousarray(columns, dtype=byteorder + "f8").tobytes())
+    rec = np.empty(mesh.n_vertices, dtype=[("xyz", byteorder + "f8", (3,))]
+                   + [(f"a{i}", types[k].newbyteorder(byteorder)) for i, k in enumerate(attrs)])
+    rec["xyz"] = mesh.vertices
+    for i, (k, v) in enumerate(attrs.items()):
+        rec[f"a{i}"] = v
+    f.write(rec.tobytes())
     cdt = np.dtype(byteorder + ("u1" if count_type == "uchar" else "i4"))
     idt = np.dtype(byteorder + "i4")
     offsets, indices = mesh.face_offsets, mesh.face_indices

@@ -144,9 +144,15 @@ def _validate_csr(indices: np.ndarray, offsets: np.ndarray, n: int) -> None:
 
 
 def _as_attribute(name: str, values, n: int) -> np.ndarray:
+    """A copy of ``values`` as an attribute: integer and float32 arrays keep their type (a file's
+    ``uchar`` colours stay ``uchar``), anything else becomes float64; weights are always float64."""
     try:
-        a = np.array(values, dtype=np.float64, copy=True)
-    except (TypeError, ValueError):
+        a = np.array(values, copy=True)
+        if name == WEIGHT or a.dtype.kind not in "iuf" or a.dtype.itemsize > 8:
+            a = a.astype(np.float64)
+        elif not a.dtype.isnative:
+            a = a.astype(a.dtype.newbyteorder("="))
+    except (TypeError, ValueError, OverflowError):
         raise MeshError(f"attribute '{name}' must be numbers") from None
     if a.ndim == 0 or a.shape[0] != n:
         raise MeshError(f"attribute '{name}' must have one value per vertex ({n}), got shape {a.shape}")
@@ -417,7 +423,8 @@ class Mesh:
     weights : array_like, shape (n,), optional
         Per-vertex weights in [0, 1] (stored as the ``"weight"`` attribute).
     attributes : mapping of name -> array with n rows, optional
-        Other per-vertex attributes (float64).
+        Other per-vertex attributes: integer and float32 arrays keep their type, anything else
+        becomes float64.
 
     Raises
     ------

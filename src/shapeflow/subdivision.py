@@ -79,6 +79,7 @@ import scipy.sparse as sp
 
 from . import kernels
 from .errors import ParameterError
+from .geometry import NORMAL_ATTRIBUTES, refresh_normals
 from .mesh import WEIGHT, Mesh, Topology
 
 __all__ = ["subdivide", "subdivision_matrix", "SCHEMES", "BOUNDARY_RULES", "WEIGHT_RULES"]
@@ -552,7 +553,9 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
     edge_order = _check_choice("edge_order", edge_order, EDGE_ORDERS)
     threads = _check_threads(blender_threads)
 
-    attrs: dict[str, np.ndarray] = {k: np.asarray(v) for k, v in mesh.attributes.items()}
+    attrs: dict[str, np.ndarray] = {k: np.asarray(v) for k, v in mesh.attributes.items()
+                                    if k not in NORMAL_ATTRIBUTES}      # normals: recomputed at the end
+    types = {k: v.dtype for k, v in attrs.items()}
     weights = attrs.pop(WEIGHT, None)
     w_scheme = "simple" if weights_rule == "linear" else "catmull-clark"
     schemes = (scheme,) if weights is None or w_scheme == scheme else (scheme, w_scheme)
@@ -573,4 +576,16 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
         return mesh.with_vertices(mesh.vertices)
     if weights is not None:
         attrs[WEIGHT] = np.clip(weights, 0.0, 1.0)  # convex combinations; clip round-off
-    return Mesh(X, None, attributes=attrs, _topology=topo)
+    for k, v in attrs.items():   # every attribute in its own type: integers rounded into their range
+        dt = types[k]
+        if dt.kind in "iu":
+            info = np.iinfo(dt)
+            attrs[k] = np.clip(np.rint(v), info.min, info.max).astype(dt)
+        elif dt != v.dtype:
+            attrs[k] = v.astype(dt)
+    out = Mesh(X, None, attributes=attrs, _topology=topo)
+    normals = [k for k in NORMAL_ATTRIBUTES if k in mesh.attributes]
+    if normals:
+        out = refresh_normals(out.with_attributes(**{k: np.zeros(out.n_vertices, mesh.attributes[k].dtype)
+                                                      for k in normals}))
+    return out

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
+from ..geometry import refresh_normals
 from ..io import output_target
 from ._common import eprint, load_mesh_arg, progress_callback, save_mesh
 from .flow import _add_common, flow_kwargs
@@ -196,7 +197,7 @@ def run(args) -> int:
             reports.append(rep)
             done += len(idx)
             for i, V in zip(idx, shapes):
-                save_mesh(str(paths[i]), mesh.with_vertices(V), args.force)
+                save_mesh(str(paths[i]), refresh_normals(mesh.with_vertices(V)), args.force)
                 if image and i in panels:
                     kept[i] = V
                 done += 1
