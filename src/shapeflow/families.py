@@ -425,6 +425,21 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
         raise ParameterError(f"progress must be a callable(done, total) or None, got {progress!r}")
     fs = FlowSolver(mesh, lam_border=lam_border, normalized=normalized, weights=weights,
                     invert_weights=invert_weights, scheme=scheme, compat=compat, solver=solver, rtol=rtol)
+    if fs._pow2:   # extreme coordinates: the family of the exact power-of-two copy, scaled back
+        e = fs._pow2
+        lams_in = lam_arr if normalized else np.ldexp(lam_arr, -2 * e)
+        res = family(fs.mesh, lams_in, lam_border=lam_border, iterations=iterations, normalized=normalized,
+                     weights=fs.w, preserve_volume=preserve_volume, axes=axes, scheme=scheme, update=update,
+                     compat=compat, solver=solver, rtol=rtol, strategy=strategy, progress=progress,
+                     return_report=True)
+        shapes, rep = res
+        rep.lams = lam_arr
+        with np.errstate(over="ignore"):
+            shapes = np.ldexp(shapes, e)
+        if not np.isfinite(shapes).all():
+            raise ParameterError("lams: the result leaves the range of double precision (|x| > 1.8e308)")
+        rep.notes.append(f"computed on the coordinates scaled by 2^{-e} (exact), then scaled back")
+        return (shapes, rep) if return_report else shapes
     ax = check_run_options(iterations, update, axes, fs.blender)
     k, n = lam_arr.size, mesh.n_vertices
     from .budget import check_memory

@@ -56,7 +56,7 @@ import scipy.sparse as sp
 
 from . import kernels, params
 from .errors import ParameterError
-from .geometry import NORMAL_ATTRIBUTES, refresh_normals, signed_volume
+from .geometry import NORMAL_ATTRIBUTES, pow2_exponent, refresh_normals, signed_volume
 from .mesh import Mesh
 from .operators import _assemble, _check_scheme
 from .solvers import (DEFAULT_RTOL, METHODS, SPDSolver, chebyshev_coefficients, chebyshev_steps, choose_method,
@@ -146,6 +146,7 @@ class FlowReport:
     notes: list = field(default_factory=list)
     seconds: float = 0.0
     max_displacement: float = 0.0
+    steps: int = 0            # steps taken (fewer than ``iterations`` only when no vertex was left free)
 
     def summary(self) -> str:
         """One line: time, max displacement, locked vertices, solver."""
@@ -330,7 +331,18 @@ class FlowSolver:
         self.scheme = _check_scheme(scheme or ("blender" if self.blender else "tqlbo"))
         if not isinstance(solver, str) or solver not in FLOW_SOLVERS:
             raise ParameterError(f"unknown solver {solver!r}; choose one of {', '.join(FLOW_SOLVERS)}")
-        self.mesh = mesh
+        # extreme coordinates: the flow runs on an exact power-of-two copy (it is scale-equivariant:
+        # eq. 10 and the umbrella step are scale-free, eq. 9's λ scales with the area) and the result
+        # is scaled back exactly; Blender's absolute thresholds keep Blender's units
+        self.input_mesh = mesh
+        self._pow2 = pow2_exponent(mesh.vertices)
+        if self._pow2 and self.blender:
+            if self._pow2 > 0:
+                raise ParameterError(f"compat='blender' computes in Blender's absolute units, and coordinates up "
+                                     f"to {np.ldexp(1.0, self._pow2):.3g} are beyond its float32 range; use the "
+                                     "paper mode (compat=None), which works at any scale")
+            self._pow2 = 0    # tiny Blender meshes: Blender's thresholds lock them, as Blender does
+        self.mesh = mesh if not self._pow2 else mesh.with_vertices(np.ldexp(mesh.vertices, -self._pow2))
         self.lam_border = params.lam("lam_border", lam_border)
         self.normalized = params.flag("normalized", normalized)
         self.w = resolve_weights(mesh, weights, params.flag("invert_weights", invert_weights))
@@ -338,7 +350,7 @@ class FlowSolver:
         self.rtol = params.rtol(rtol)
         self._op0: _Operator | None = None
         self._op0_lock = threading.Lock()
-        self._coord_scale = float(np.abs(mesh.vertices).max()) if mesh.n_vertices else 1.0
+        self._coord_scale = float(np.abs(self.mesh.vertices).max()) if mesh.n_vertices else 1.0
 
     # --- operator and systems ----------------------------------------------
     def operator(self, V: np.ndarray | None = None) -> _Operator:
@@ -627,12 +639,15 @@ class FlowSolver:
         """
         t0 = time.perf_counter()
         lam = params.lam("lam", lam)
+        lam_user = lam
+        if self._pow2 and not self.normalized:   # eq. 9: C = 2A/(|λ|w) and A scales by 4^-k
+            lam = float(np.ldexp(lam, -2 * self._pow2))
         preserve_volume = params.flag("preserve_volume", preserve_volume)
         if progress is not None and not callable(progress):
             raise ParameterError(f"progress must be a callable(done, total) or None, got {progress!r}")
         lam_b = self.lam_border
         ax = check_run_options(iterations, update, axes, self.blender)
-        report = FlowReport(lam=lam, lam_border=lam_b, iterations=int(iterations),
+        report = FlowReport(lam=lam_user, lam_border=lam_b, iterations=int(iterations),
                             mode="blender" if self.blender else "paper", scheme=self.scheme, update=update)
         mesh = self.mesh
         V0 = mesh.vertices
@@ -660,13 +675,21 @@ class FlowSolver:
             if it == 0 or update == "recompute":
                 if it > 0:
                     op = self.operator(V)
+                    # the report describes the operator of the last step taken
+                    report.locked_vertices = np.flatnonzero(op.locked)
+                    report.locked = int(report.locked_vertices.size)
+                    report.degenerate_triangles = op.n_bad
                 isys = self._interior_system(op, lam, n_solves, report.notes)
                 bsys = self._boundary_system(op, lam_b)
                 if isys is not None:
                     report.solver = isys.solver.method
                 report.free_vertices = int((isys.free.sum() if isys else 0) + (bsys.free.sum() if bsys else 0))
                 if isys is None and bsys is None:
-                    report.notes.append("no free vertex: input returned unchanged")
+                    report.notes.append("no free vertex: input returned unchanged" if it == 0 else
+                                        f"no free vertex left after step {it} (the operator rebuilt at the moved "
+                                        f"positions locks or fixes them all): stopped after {it} of "
+                                        f"{int(iterations)} steps")
+                    report.steps = it
                     break
             if it == 0 and update == "fixed" and iterations >= 2 and not preserve_volume and bsys is None \
                     and isys is not None and isys.solver.method == "cg" \
@@ -674,6 +697,7 @@ class FlowSolver:
                 V_all = self._fixed_steps(V, lam, int(iterations), isys, ax, report, op.st)
                 if V_all is not None:
                     V = V_all
+                    report.steps = int(iterations)
                     if progress is not None:
                         progress(int(iterations), int(iterations))
                     break
@@ -683,16 +707,30 @@ class FlowSolver:
             V = V_new
             if progress is not None:
                 progress(it + 1, int(iterations))
+        else:
+            report.steps = int(iterations)
         report.notes = list(dict.fromkeys(report.notes))
         return self._result(V, report, t0)
 
     def _result(self, V: np.ndarray, report: FlowReport, t0: float) -> Mesh:
         V0 = self.mesh.vertices
+        if self._pow2:   # back to the caller's scale, exactly
+            report.notes.append(f"computed on the coordinates scaled by 2^{-self._pow2} (exact), then scaled back")
+            moved = V is not V0
+            with np.errstate(over="ignore"):
+                report.max_displacement = float(np.ldexp(_max_row_distance(V, V0), self._pow2))
+                V, V0 = np.ldexp(V, self._pow2), self.input_mesh.vertices
+            if not np.isfinite(V).all():
+                raise ParameterError("lam: the result leaves the range of double precision (|x| > 1.8e308)")
+            if not moved:
+                V = V0
+        mesh = self.input_mesh
         if V is V0:
-            out = self.mesh.with_vertices(V0)
+            out = mesh.with_vertices(V0)
         else:   # V is a new array of this run: handed over without a copy (validated if not finite)
-            out = self.mesh._with_own_vertices(V)
-        report.max_displacement = _max_row_distance(V, V0)
+            out = mesh._with_own_vertices(V)
+        if not self._pow2:
+            report.max_displacement = _max_row_distance(V, V0)
         if V is not V0 and any(k in out.attributes for k in NORMAL_ATTRIBUTES):
             out = refresh_normals(out)
             report.notes.append("vertex normals (nx, ny, nz) recomputed from the new surface")

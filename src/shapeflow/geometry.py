@@ -17,6 +17,21 @@ __all__ = [
 ]
 
 
+#: Coordinates whose largest magnitude lies outside [SCALE_LO, SCALE_HI] are computed on a copy
+#: scaled by a power of two (exact in binary floating point), so that no square, cross product or
+#: area over- or underflows; results are scaled back exactly (cotangents are scale-free).
+SCALE_LO, SCALE_HI = 2.0 ** -100, 2.0 ** 100
+
+
+def pow2_exponent(V: np.ndarray) -> int:
+    """0 for coordinates within [SCALE_LO, SCALE_HI], else k with max|V| = f·2^k, f in [0.5, 1)."""
+    m = float(np.abs(V).max()) if V.size else 0.0
+    if m == 0.0 or SCALE_LO <= m <= SCALE_HI:
+        return 0
+    return int(np.frexp(m)[1])
+
+
+
 def triangle_cotangents(vertices: np.ndarray, tris: np.ndarray):
     """Cotangents of the three angles of each triangle, and twice its area.
 
@@ -120,6 +135,9 @@ def vertex_normals(mesh, vertices: np.ndarray | None = None) -> np.ndarray:
     """Unit area-weighted vertex normals ((0,0,0) where undefined)."""
     t = mesh.topology
     v = mesh.vertices if vertices is None else vertices
+    k = pow2_exponent(v)
+    if k:   # normals are scale-free: an exact power-of-two copy keeps the areas in range
+        v = np.ldexp(v, -k)
     fa = face_vector_areas(mesh, v)
     n = v.shape[0]
     nrm = np.empty((n, 3))

@@ -52,7 +52,7 @@ import scipy.sparse as sp
 
 from . import kernels
 from .errors import MeshError, ParameterError
-from .geometry import triangle_cotangents, vertex_normals
+from .geometry import pow2_exponent, triangle_cotangents, vertex_normals
 
 __all__ = [
     "SCHEMES",
@@ -512,6 +512,10 @@ def _assemble(mesh, scheme: str, thresholds: str, vertices: np.ndarray | None = 
         raise ParameterError(f"unknown thresholds {thresholds!r}; choose one of {', '.join(THRESHOLDS)}")
     st = _structure(mesh, _check_scheme(scheme))
     V = mesh.vertices if vertices is None else vertices
+    # extreme scales (relative thresholds only: Blender's are absolute): an exact power-of-two copy
+    k = pow2_exponent(V) if thresholds == "relative" else 0
+    if k:
+        V = np.ldexp(V, -k)
     n = mesh.n_vertices
     edges = mesh.topology.edges
     xcot, xdbl, xsq = triangle_cotangents(V, st.extra_tris)
@@ -542,6 +546,12 @@ def _assemble(mesh, scheme: str, thresholds: str, vertices: np.ndarray | None = 
     if st.extra_tris.size:
         xa = 0.5 * xdbl * st.extra_w
         ring += np.bincount(st.extra_tris.reshape(-1), np.repeat(xa, 3), minlength=n)
+    if k:
+        with np.errstate(over="ignore"):
+            ring = np.ldexp(ring, 2 * k)
+        if not np.isfinite(ring).all():
+            raise ParameterError(f"the mesh's coordinates (up to {np.ldexp(1.0, k):.3g}) give areas beyond double "
+                                 "precision; rescale it (the normalised flow does this itself)")
     return st, pw, deg, ring, locked, n_bad
 
 
@@ -657,6 +667,10 @@ def mean_curvature_normal(mesh, *, area: str = "ring", scheme: str = "tqlbo") ->
     Vertices with zero area get 0; values at boundary vertices are not
     curvature (no closed ring).
     """
+    k = pow2_exponent(mesh.vertices)
+    if k:   # H·n scales as 1/size: computed on an exact power-of-two copy (its areas stay in range)
+        return np.ldexp(mean_curvature_normal(mesh.with_vertices(np.ldexp(mesh.vertices, -k)), area=area,
+                                              scheme=scheme), -k)
     st, pw, deg, ring, _, _ = _assemble(mesh, scheme, "relative")
     A = _areas(mesh, st, ring, area)
     KV = st.matrix(deg, -pw) @ mesh.vertices
