@@ -106,5 +106,5 @@ def test_ascii_integer_property_out_of_its_type_is_an_error(tmp_path, value):
     p.write_text("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
                  "property uchar red\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
                  f"0 0 0 1\n1 0 0 {value}\n0 1 0 3\n3 0 1 2\n")
-    with pytest.raises(MeshError, match=rf"line 12: property 'red' is uint8 but has the value"):
+    with pytest.raises(MeshError, match=r"line 12: property 'red' is uint8 but has the value"):
         sio.load(p)

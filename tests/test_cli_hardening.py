@@ -7,7 +7,6 @@ import sys
 
 import pytest
 
-import shapeflow as sf
 
 
 def run_cli(args, capsys):

@@ -14,7 +14,7 @@ import shapeflow as sf
 from shapeflow import kernels
 from shapeflow.operators import _assemble, _Structure
 
-from conftest import shared_mesh_paths, load_fixture_mesh
+from conftest import shared_mesh_paths
 import meshgen
 
 pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba (the 'fast' extra) not installed")

@@ -89,7 +89,7 @@ import numpy as np
 
 from . import kernels, params
 from .errors import ParameterError
-from .flow import FlowReport, FlowSolver, _finite, check_run_options
+from .flow import FlowReport, FlowSolver, check_run_options
 from .geometry import refresh_normals
 from .mesh import Mesh
 from .solvers import DEFAULT_RTOL, estimate_cg_iterations

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
+from .. import params
 from ..geometry import refresh_normals
 from ..io import output_target
 from ._common import eprint, load_mesh_arg, progress_callback, save_mesh
@@ -69,13 +70,12 @@ def _retitle(parser, dest: str, **kw) -> None:
 
 
 def _number(name: str, text: str) -> float:
+    """A finite number written on the command line."""
     try:
         v = float(text)
     except ValueError:
         raise ParameterError(f"{name}: {text!r} is not a number") from None
-    if not math.isfinite(v):
-        raise ParameterError(f"{name} must be finite, got {text}")
-    return v
+    return params.number(name, v)
 
 
 def lams_from_args(args) -> list[float]:
