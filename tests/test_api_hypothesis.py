@@ -14,6 +14,11 @@ the draw so each example stays small; the limits on those are tested in
 
 from __future__ import annotations
 
+import atexit
+import shutil
+import tempfile
+from pathlib import Path
+
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -25,6 +30,10 @@ from meshgen import grid, icosphere
 MESH = icosphere(1)                 # 42 vertices, closed triangles
 OPEN = grid(5, 4, mix=0.5, seed=1)   # 20 vertices, quads and triangles, open
 N = MESH.n_vertices
+_TMP = Path(tempfile.mkdtemp(prefix="shapeflow-hypothesis-"))
+atexit.register(shutil.rmtree, _TMP, ignore_errors=True)
+_SAVED = _TMP / "saved.ply"
+sf.save(_SAVED, MESH)
 
 hostile = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True),
@@ -73,6 +82,8 @@ CALLS = {
                          kw.pop("points", [MESH.vertices[0], MESH.vertices[5]]), **kw), ["points", "spacing"]),
     "InflateBrush": (lambda kw: sf.InflateBrush(MESH, **{"radius": 0.5, **kw}).dab(MESH.vertices[0]),
                      ["strength", "radius", "falloff", "weights"]),
+    "save": (lambda kw: sf.save(_TMP / "m.ply", MESH, **kw), ["binary", "format", "force"]),
+    "load": (lambda kw: sf.load(_SAVED, **kw), ["format"]),
     "Mesh": (lambda kw: sf.Mesh(kw.pop("vertices", MESH.vertices), kw.pop("faces", [[0, 1, 2]]), **kw),
              ["vertices", "faces", "weights"]),
 }

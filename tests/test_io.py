@@ -11,7 +11,7 @@ import pytest
 
 import shapeflow as sf
 import shapeflow.io as sio
-from shapeflow.errors import MeshError
+from shapeflow.errors import MeshError, ParameterError
 from conftest import MESHES, requires_shared, shared_mesh_paths
 
 # --------------------------------------------------------------------------
@@ -686,5 +686,5 @@ def test_new_file_mode_follows_umask(tmp_path):
 
 
 def test_save_needs_a_mesh(tmp_path):
-    with pytest.raises(TypeError):
+    with pytest.raises(ParameterError):
         sio.save(tmp_path / "x.obj", [[0, 0, 0]])

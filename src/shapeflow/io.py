@@ -74,7 +74,8 @@ from typing import BinaryIO, Callable
 
 import numpy as np
 
-from .errors import MeshError, OutputError
+from . import params
+from .errors import MeshError, OutputError, ParameterError
 from .mesh import Mesh
 
 __all__ = [
@@ -115,7 +116,18 @@ def register_format(fmt: MeshFormat) -> None:
         FORMATS[ext if ext.startswith(".") else "." + ext] = fmt
 
 
+def _path(path, what: str = "path") -> str:
+    """A file path (str, bytes or os.PathLike) as str; anything else is a ParameterError."""
+    try:
+        name = os.fspath(path)
+    except TypeError:
+        raise ParameterError(f"{what} must be a file path (str or os.PathLike), got {path!r}") from None
+    return os.fsdecode(name)
+
+
 def _format_for(name: str, format: str | None) -> MeshFormat:
+    if format is not None and not isinstance(format, str):
+        raise ParameterError(f"format must be a string such as 'ply' or '.obj', got {format!r}")
     if format is not None:
         ext = format.lower()
         ext = ext if ext.startswith(".") else "." + ext
@@ -142,7 +154,7 @@ def load(path, *, format: str | None = None) -> Mesh:
         The file is missing, unreadable or malformed; the message names the
         file and the line (text) or element (binary PLY).
     """
-    name = os.fspath(path)
+    name = _path(path)
     fmt = _format_for(name, format)
     data = _read_bytes(name)
     try:
@@ -165,8 +177,11 @@ def save(path, mesh: Mesh, *, format: str | None = None, binary: bool | None = N
     is not touched.  A symbolic link is followed: its target is replaced.
     """
     if not isinstance(mesh, Mesh):
-        raise TypeError(f"save() needs a shapeflow.Mesh, got {type(mesh).__name__}")
-    name = os.fspath(path)
+        raise ParameterError(f"save() needs a shapeflow.Mesh, got {type(mesh).__name__}")
+    if binary is not None:
+        binary = params.flag("binary", binary)
+    force = params.flag("force", force)
+    name = _path(path)
     fmt = _format_for(name, format)
     if binary and not fmt.binary:
         raise MeshError(f"{name}: {fmt.name} has no binary variant")
@@ -185,7 +200,7 @@ def load_weights(path, n_vertices: int) -> np.ndarray:
 
     Checks there are ``n_vertices`` finite values in [0, 1]; returns float64.
     """
-    name = os.fspath(path)
+    name = _path(path)
     ext = os.path.splitext(name)[1].lower()
     if ext not in WEIGHT_EXTENSIONS:
         raise MeshError(f"{name}: unknown weights file extension '{ext}'; use .npy or .txt")
@@ -243,7 +258,7 @@ def _check_npy_header(f, name: str, n_vertices: int) -> None:
 
 def save_weights(path, weights, *, force: bool = False) -> None:
     """Write weights atomically to ``.npy`` or ``.txt`` (one number a line, exact); ``force`` as in :func:`save`."""
-    name = os.fspath(path)
+    name = _path(path)
     ext = os.path.splitext(name)[1].lower()
     if ext not in WEIGHT_EXTENSIONS:
         raise MeshError(f"{name}: unknown weights file extension '{ext}'; use .npy or .txt")
@@ -317,7 +332,7 @@ def output_target(path, *, force: bool = False) -> str:
     a directory, shapeflow's bundled example data (never written), a folder
     without write permission, and a read-only file unless ``force``.
     """
-    name = os.fspath(path)
+    name = _path(path)
     if not name:
         raise OutputError("the output path is empty")
     target = os.path.realpath(name)
