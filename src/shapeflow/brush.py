@@ -178,20 +178,14 @@ def _apply_falloff(fn, t: np.ndarray) -> np.ndarray:
 
 
 def _as_point(center) -> np.ndarray:
-    try:
-        c = np.asarray(center, dtype=np.float64).reshape(-1)
-    except (TypeError, ValueError):
-        raise ParameterError(f"a brush centre must be 3 numbers, got {center!r}") from None
+    c = params.real_array("center", center).reshape(-1)
     if c.shape != (3,) or not np.all(np.isfinite(c)):
         raise ParameterError(f"a brush centre must be 3 finite numbers, got {np.asarray(center).tolist()!r}")
     return c
 
 
 def _as_points(points) -> np.ndarray:
-    try:
-        P = np.asarray(points, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ParameterError("stroke points must be an (m, 3) array of numbers") from None
+    P = params.real_array("points", points)
     if P.ndim == 1 and P.size == 3:
         P = P.reshape(1, 3)
     if P.ndim != 2 or P.shape[1] != 3 or P.shape[0] == 0:

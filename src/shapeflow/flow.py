@@ -108,10 +108,7 @@ def resolve_weights(mesh: Mesh, weights, invert: bool = False) -> np.ndarray:
         if w.ndim != 1:
             raise ParameterError(f"attribute '{weights}' has shape {w.shape}; weights need shape ({n},)")
     else:
-        try:
-            w = np.asarray(weights, dtype=np.float64)
-        except (TypeError, ValueError, OverflowError):
-            raise ParameterError("weights must be numbers") from None
+        w = params.real_array("weights", weights)
         if w.shape != (n,):
             raise ParameterError(f"weights must have shape ({n},) (one per vertex), got {w.shape}")
     bad = np.flatnonzero(~np.isfinite(w) | (w < 0) | (w > 1))

@@ -15,7 +15,7 @@ import numpy as np
 
 from .errors import ParameterError
 
-__all__ = ["LAMBDA_MAX", "number", "lam", "flag", "integer", "rtol", "axes"]
+__all__ = ["LAMBDA_MAX", "number", "real_array", "lam", "flag", "integer", "rtol", "axes"]
 
 #: The largest |λ| (and |λ_b|) the flow accepts.  The scaled system's diagonal
 #: term is m/|λ|: past ~1e15 it vanishes against the Laplacian in double
@@ -43,6 +43,30 @@ def number(name: str, x, *, lo: float | None = None, hi: float | None = None,
     if hi is not None and v > hi:
         raise ParameterError(f"{name} must be <= {hi:g}, got {v:g}")
     return v
+
+
+def real_array(name: str, x) -> np.ndarray:
+    """``x`` as a float64 array, refusing strings, bytes, booleans, complex and integers beyond double range.
+
+    Only the element types are checked here; shapes and finiteness are the caller's.
+    """
+    try:
+        a = np.asarray(x)
+        if a.dtype.kind == "O":   # mixed or huge Python numbers: each must be a real number
+            flat = a.reshape(-1)
+            if any(isinstance(v, (bool, np.bool_, str, bytes)) or not isinstance(v, numbers.Real) for v in flat):
+                raise TypeError
+            a = a.astype(np.float64)
+        elif a.dtype.kind not in "iuf":
+            raise TypeError
+        return a.astype(np.float64, copy=False)
+    except (TypeError, ValueError, OverflowError):
+        raise ParameterError(f"{name} must be real numbers, got {_short(x)}") from None
+
+
+def _short(x) -> str:
+    r = repr(x)
+    return r if len(r) <= 80 else r[:77] + "..."
 
 
 def lam(name: str, x) -> float:
