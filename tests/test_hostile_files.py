@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import struct
 import subprocess
 import sys
@@ -127,3 +128,14 @@ def test_ply_with_utf8_comments_and_bom(tmp_path, bom, comment, kind):
     p = tmp_path / "m.ply"
     p.write_bytes(bom + data)
     assert sio.load(p) == sf.Mesh(TRI_V, [[0, 1, 2]])
+
+
+def test_devices_and_pipes_are_not_read(tmp_path):
+    link = tmp_path / "zero.ply"
+    link.symlink_to("/dev/zero")        # endless: reading it would never finish
+    with pytest.raises(MeshError, match="not a regular file"):
+        sio.load(link)
+    fifo = tmp_path / "pipe.obj"
+    os.mkfifo(fifo)
+    with pytest.raises(MeshError, match="not a regular file"):
+        sio.load(fifo)

@@ -38,3 +38,23 @@ def test_the_estimates_follow_the_memory_there_is(monkeypatch):
         sf.family(mesh, np.linspace(0.0, -100.0, 400))
     monkeypatch.setattr(budget, "available_bytes", lambda: None)     # unknown: no refusal
     assert sf.subdivide(mesh, 2).n_faces == 46_848
+
+
+def test_absurd_levels_are_refused_without_overflow():
+    with pytest.raises(ParameterError, match="more than 1e120 quads"):
+        sf.subdivide(sf.load_example("spot"), levels=10 ** 20)
+
+
+def test_a_step_too_small_to_move_anything_says_so():
+    out = sf.flow(sf.load_example("spot"), 1e-320)
+    assert out.report.max_displacement == 0.0
+    assert any("moves nothing representable" in n for n in out.report.notes)
+
+
+def test_render_grid_with_empty_rows_is_refused():
+    pytest.importorskip("vtk", reason="rendering needs the 'render' extra")
+    from shapeflow.rendering import _grid
+
+    assert _grid((1, 2), 2) == (1, 2) and _grid((2, 2), 3) == (2, 2)
+    with pytest.raises(ParameterError, match="empty"):
+        _grid((100_000, 100_000), 2)

@@ -379,6 +379,10 @@ class FlowSolver:
             else:
                 notes.append(f"{int(indefinite.sum())} vertices with negative cotangent degree kept fixed")
         c = _row_scale(op.mass, abs(lam), w, free, self._coord_scale)
+        tiny = free & ~np.isfinite(c)
+        if tiny.any():
+            notes.append(f"{int(tiny.sum())} vertices kept fixed: |λ|·weight is so small that their step "
+                         "moves nothing representable")
         free &= np.isfinite(c)
         if not free.any():
             return None

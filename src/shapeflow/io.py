@@ -300,6 +300,10 @@ def _os_error(name: str, exc: OSError) -> MeshError:
 
 def _read_bytes(name: str) -> bytes:
     try:
+        # /dev/zero, a FIFO...: no end to trust (and opening a FIFO waits for a writer): checked first
+        mode = os.stat(name).st_mode
+        if not stat.S_ISREG(mode) and not stat.S_ISDIR(mode):   # a directory: open() names it below
+            raise MeshError(f"{name}: not a regular file (a device, pipe or socket); give a file")
         with open(name, "rb") as f:
             return f.read()
     except OSError as exc:

@@ -892,4 +892,6 @@ def _grid(grid, k: int) -> tuple[int, int]:
         raise ParameterError(f"grid must be (rows, cols), got {grid!r}") from None
     if rows < 1 or cols < 1 or rows * cols < k:
         raise ParameterError(f"a {rows}x{cols} grid cannot hold {k} meshes")
+    if (rows - 1) * cols >= k or rows * (cols - 1) >= k:   # a whole empty row or column: only blank pixels
+        raise ParameterError(f"grid: a {rows}x{cols} grid for {k} meshes leaves a whole row or column empty")
     return rows, cols

@@ -131,10 +131,11 @@ def _check_output_size(mesh: Mesh, levels: int) -> None:
     if levels == 0:
         return
     t = _as_topology(mesh)
-    faces = float(t.face_indices.size) * 4.0 ** (levels - 1)
+    faces = float(t.face_indices.size) * 4.0 ** min(levels - 1, 200)   # 4^200 already exceeds any memory
     from .budget import check_memory
 
-    check_memory(f"{levels} levels of subdivision ({t.n_faces:,} faces -> {faces:,.0f} quads)",
+    count = f"{faces:,.0f}" if faces < 1e15 else f"{faces:.3g}" if levels <= 201 else "more than 1e120"
+    check_memory(f"{levels} levels of subdivision ({t.n_faces:,} faces -> {count} quads)",
                  faces * BYTES_PER_FACE, parameter="levels")
 
 
