@@ -100,6 +100,7 @@ def _cheap(name, value) -> bool:
         return True
 
 
+@pytest.mark.filterwarnings("error::numpy.exceptions.ComplexWarning")   # a dropped imaginary part is data loss
 @pytest.mark.parametrize("call", sorted(CALLS))
 @settings(max_examples=120, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])

@@ -148,12 +148,16 @@ def _as_attribute(name: str, values, n: int) -> np.ndarray:
     ``uchar`` colours stay ``uchar``), anything else becomes float64; weights are always float64."""
     try:
         a = np.array(values, copy=True)
+        if a.dtype.kind not in "iufbO":   # strings, bytes, complex...: not real numbers
+            raise TypeError
+        if a.dtype.kind == "O" and any(isinstance(v, (str, bytes, complex)) for v in a.reshape(-1)):
+            raise TypeError
         if name == WEIGHT or a.dtype.kind not in "iuf" or a.dtype.itemsize > 8:
             a = a.astype(np.float64)
         elif not a.dtype.isnative:
             a = a.astype(a.dtype.newbyteorder("="))
     except (TypeError, ValueError, OverflowError):
-        raise MeshError(f"attribute '{name}' must be numbers") from None
+        raise MeshError(f"attribute '{name}' must be real numbers, got dtype {np.asarray(values).dtype}") from None
     if a.ndim == 0 or a.shape[0] != n:
         raise MeshError(f"attribute '{name}' must have one value per vertex ({n}), got shape {a.shape}")
     if not np.isfinite(a).all():
