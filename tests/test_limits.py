@@ -58,3 +58,17 @@ def test_render_grid_with_empty_rows_is_refused():
     assert _grid((1, 2), 2) == (1, 2) and _grid((2, 2), 3) == (2, 2)
     with pytest.raises(ParameterError, match="empty"):
         _grid((100_000, 100_000), 2)
+
+
+def test_long_work_reports_progress():
+    mesh = sf.load_example("spot")
+    seen = []
+    sf.subdivide(mesh, 2, progress=lambda d, t: seen.append((d, t)))
+    assert seen == [(1, 2), (2, 2)]
+    seen.clear()
+    sf.Brush(mesh, lam=-10.0, radius=0.1).stroke(mesh.vertices[:4], spacing=None,
+                                                  progress=lambda d, t: seen.append((d, t)))
+    assert seen == [(1, 4), (2, 4), (3, 4), (4, 4)]
+    seen.clear()
+    sf.flow(mesh, -5.0, iterations=3, update="recompute", progress=lambda d, t: seen.append((d, t)))
+    assert seen == [(1, 3), (2, 3), (3, 3)]

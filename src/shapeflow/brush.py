@@ -80,6 +80,7 @@ import math
 import threading
 import time
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -743,19 +744,26 @@ class _BrushBase:
         return self.commit()
 
     @_serialised
-    def stroke(self, points, spacing: float | None = 0.25) -> np.ndarray:
+    def stroke(self, points, spacing: float | None = 0.25, *,
+               progress: Callable[[int, int], None] | None = None) -> np.ndarray:
         """Dabs along a polyline, one every ``spacing × radius`` of arc length.
 
         ``spacing=None`` dabs at the given points as they are.  The stroke is
-        one undo step.  Returns the sorted indices of every vertex moved.
+        one undo step (an interrupted stroke too: one :meth:`undo` takes back
+        what it did).  ``progress(done, total)`` is called after each dab.  Returns
+        the sorted indices of every vertex moved.
         """
+        if progress is not None and not callable(progress):
+            raise ParameterError(f"progress must be a callable(done, total) or None, got {progress!r}")
         P = self.dab_centers(points, spacing)
         self._pending = None
         self._group = []
         moved = []
         try:
-            for c in P:
+            for i, c in enumerate(P):
                 moved.append(self.dab(c))
+                if progress is not None:
+                    progress(i + 1, len(P))
         finally:
             group, self._group = self._group, None
             if group:

@@ -74,6 +74,8 @@ the points and faces are the same but listed in a different order.
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -500,7 +502,8 @@ def subdivision_matrix(mesh, *, levels: int = 1, scheme: str = "catmull-clark",
 @kernels.with_small_pages
 def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
               boundary: str = "smooth", weights_rule: str = "linear",
-              edge_order: str = "blender", blender_threads: int = 1) -> Mesh:
+              edge_order: str = "blender", blender_threads: int = 1,
+              progress: Callable[[int, int], None] | None = None) -> Mesh:
     """Subdivide a mesh ``levels`` times, carrying its per-vertex attributes.
 
     Works on any mix of triangles, quads and n-gons, open or closed; after one
@@ -523,6 +526,9 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
     weights_rule : {"linear", "smooth"}
     edge_order, blender_threads
         Numbering of the new vertices, see :func:`subdivision_matrix`.
+    progress : callable(done, total), optional
+        Called after each level.  The output's memory is estimated before
+        the first level, and a subdivision that cannot fit is refused.
 
     Returns
     -------
@@ -565,7 +571,10 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
     topo = mesh.topology
     # each level's matrix is applied as its two factors (S = P @ Q), which is
     # cheaper than forming S for a single use; subdivision_matrix() forms it
-    for mats, child in _levels(mesh, levels, schemes, boundary, edge_order, threads, factored=True):
+    if progress is not None and not callable(progress):
+        raise ParameterError(f"progress must be a callable(done, total) or None, got {progress!r}")
+    for done, (mats, child) in enumerate(_levels(mesh, levels, schemes, boundary, edge_order, threads,
+                                                 factored=True), start=1):
         S = mats[scheme]
         X = S @ X
         attrs = {k: (S @ v.reshape(v.shape[0], -1)).reshape((S.shape[0],) + v.shape[1:])
@@ -573,6 +582,8 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
         if weights is not None:
             weights = mats[w_scheme] @ weights
         topo = child
+        if progress is not None:
+            progress(done, levels)
     if levels == 0:
         return mesh.with_vertices(mesh.vertices)
     if weights is not None:

@@ -19,7 +19,7 @@ import math
 import time
 
 from ..errors import ParameterError
-from ._common import eprint, load_mesh_arg, resolve_output, save_mesh
+from ._common import eprint, load_mesh_arg, progress_callback, resolve_output, save_mesh
 from ._images import add_image_options
 
 STROKE_KEYS = {"lambda", "radius", "points", "spacing", "falloff", "lambda_border", "brush", "strength"}
@@ -153,7 +153,8 @@ def run(args) -> int:
                              falloff=stroke["falloff"], weights=weights, undo_limit=0)
     t1 = time.perf_counter()
     centers = brush.dab_centers(stroke["points"], stroke["spacing"])
-    moved = brush.stroke(centers, spacing=None)
+    with progress_callback(len(centers), "dabs", quiet=args.quiet) as cb:
+        moved = brush.stroke(centers, spacing=None, progress=cb)
     t2 = time.perf_counter()
     result = brush.mesh
     save_mesh(out_path, result, args.force)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import eprint, load_mesh_arg, resolve_output, save_mesh, write_values
+from ._common import eprint, load_mesh_arg, progress_callback, resolve_output, save_mesh, write_values
 from ._images import add_image_options
 
 
@@ -70,8 +70,9 @@ def run(args) -> int:
     if args.weights:
         mesh = mesh.with_weights(_load_weights(args.weights, mesh.n_vertices))
     t0 = time.perf_counter()
-    out = subdivide(mesh, args.levels, scheme=args.scheme, boundary=args.boundary,
-                    weights_rule=args.weights_rule)
+    with progress_callback(args.levels, "levels") as cb:
+        out = subdivide(mesh, args.levels, scheme=args.scheme, boundary=args.boundary,
+                        weights_rule=args.weights_rule, progress=cb)
     dt = time.perf_counter() - t0
     if args.weights_out and out.weights is None:
         raise ParameterError("--weights-out: the mesh has no weights (give --weights)")
