@@ -254,7 +254,7 @@ FIGURES = {
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description="Regenerate docs/img/ (the README gallery).")
+    ap = argparse.ArgumentParser(description="Regenerate docs/img/ (the pictures of docs/gallery.md and the README).")
     ap.add_argument("figures", nargs="*", metavar="FIGURE",
                     help=f"which figures ({', '.join(FIGURES)}; default all)")
     ap.add_argument("--shared", help="folder holding meshes/ (default ../shared beside the repository)")

@@ -6,7 +6,7 @@ but shares the work between the members.
 
 Why one solve is enough (one iteration)
 ---------------------------------------
-For one step of eq. 11 (NOTES.md, "The flow, eq. 11"; :mod:`shapeflow.flow`)
+For one step of eq. 11 (docs/method.md, "The step"; :mod:`shapeflow.flow`)
 the free interior vertices solve
 
     (C_λ + K) X = C_λ V + g,      C_λ = diag(m_i / (|λ| w_i)) = C_1 / |λ|,

@@ -1,6 +1,6 @@
 """Implicit curvature flow: smoothing (λ > 0) and shape enhancement (λ < 0), eq. 11.
 
-One step, per NOTES.md (the printed minus sign of eq. 11 is a typo):
+One step (docs/method.md derives it; the printed minus sign of eq. 11 is a typo):
 
     (I + |λ| W_p L) V' = V        L = I − D⁻¹W (eq. 10) or (D − W)/(2A) (eq. 9)
     V ← V + sign(λ) (V' − V)

@@ -13,7 +13,7 @@ Laplace–Beltrami of the positions is ``Δx = −L_area @ V``.
 
 Schemes (how a face contributes to W)
 --------------------------------------
-``"tqlbo"`` (default; the paper, section 4.1, with NOTES.md's correction)
+``"tqlbo"`` (default; the paper, section 4.1, with the ½ of case (c) of eq. 8 restored: docs/method.md)
     A triangle adds cot(opposite angle) to each of its edges.  A quad is the
     mean over its two triangulations: each of its 4 corner triangles adds
     ½·cot to every pair of that corner triangle (diagonals included).
