@@ -187,7 +187,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="12 dabs per case, skip the 187K mesh")
     ap.add_argument("--dabs", type=int, default=103,
-                    help="dabs per case (3 of them warm-up); a case then lasts ~0.5 s, longer than most of the machine's noise bursts")
+                    help="dabs per case (3 of them warm-up); a case then lasts ~0.5 s, "
+                         "longer than most of the machine's noise bursts")
     ap.add_argument("--lam", type=float, default=-50.0, help="λ of every dab (default -50)")
     ap.add_argument("--solvers", action="store_true", help="compare auto (split) / banded / SuperLU / cholespy / dense")
     ap.add_argument("--profile", action="store_true", help="median time of each phase of a dab")

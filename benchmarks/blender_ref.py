@@ -323,7 +323,7 @@ def laplacian_smooth(
     outside the timed region.  Returns float64 positions (n, 3), in the input's
     vertex order (the modifier never reorders).
     """
-    bpy = _bpy()
+    _bpy()   # imports Blender (and checks it is there)
     clear_scene()
     try:
         ob = make_object(vertices, face_sizes, face_indices, weights=weights, name="smooth")
@@ -382,7 +382,7 @@ def subdivision_surface(
         raise ValueError("subdivision_type must be 'CATMULL_CLARK' or 'SIMPLE'")
     if boundary_smooth not in ("ALL", "PRESERVE_CORNERS"):
         raise ValueError("boundary_smooth must be 'ALL' or 'PRESERVE_CORNERS'")
-    bpy = _bpy()
+    _bpy()   # imports Blender (and checks it is there)
     clear_scene()
     try:
         ob = make_object(vertices, face_sizes, face_indices, weights=weights, name="subdiv")
@@ -496,7 +496,8 @@ def run_case(fixtures: Path, case: str, repeat: int = 1) -> dict:
         dev_set = float(cKDTree(P).query(c["result"])[0].max()) / diag
         dev_ord = float(np.abs(P - c["result"]).max()) / diag if same_shape else float("inf")
         out = dict(kind="subdivision", dev=dev_set, dev_ordered=dev_ord,
-                   faces_equal=bool(np.array_equal(rfs, c["result_face_sizes"]) and np.array_equal(rfi, c["result_face_indices"])))
+                   faces_equal=bool(np.array_equal(rfs, c["result_face_sizes"])
+                                    and np.array_equal(rfi, c["result_face_indices"])))
         if rw is not None and "result_weights" in c:
             out["weight_dev"] = float(np.abs(rw - c["result_weights"]).max()) if same_shape else float("inf")
     else:
@@ -518,7 +519,8 @@ def main(argv=None) -> int:
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=1, help="timing samples per case")
-    ap.add_argument("--suzanne", action="store_true", help="also time Laplacian Smooth on Suzanne-sub4 (3 samples, ~30 s)")
+    ap.add_argument("--suzanne", action="store_true", 
+                    help="also time Laplacian Smooth on Suzanne-sub4 (3 samples, ~30 s)")
     ap.add_argument("cases", nargs="*", help="case names (default: all in cases.json)")
     args = ap.parse_args(argv)
     if not available():
@@ -555,7 +557,8 @@ def main(argv=None) -> int:
     if args.suzanne:
         secs, n, samples = time_suzanne(3)
         print(f"Suzanne-sub4 ({n} vertices) Laplacian Smooth, normalized, 1 iteration, lambda 1.0: "
-              f"median {secs:.2f} s of {[round(s, 2) for s in samples]} (baseline {last_timing['baseline'] * 1e3:.2f} ms)")
+              f"median {secs:.2f} s of {[round(s, 2) for s in samples]} "
+              f"(baseline {last_timing['baseline'] * 1e3:.2f} ms)")
     return 0
 
 

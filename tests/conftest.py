@@ -26,7 +26,8 @@ SHARED = _find_shared()
 MESHES = SHARED / "meshes" if SHARED else None
 FIXTURES = SHARED / "fixtures" / "blender" if SHARED else None
 
-requires_shared = pytest.mark.skipif(SHARED is None, reason="shared/ (meshes and Blender fixtures) not found beside the repo")
+requires_shared = pytest.mark.skipif(SHARED is None,
+                                     reason="shared/ (meshes and Blender fixtures) not found beside the repo")
 
 
 def shared_mesh_paths() -> list[Path]:

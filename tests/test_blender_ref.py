@@ -150,7 +150,8 @@ def test_make_object_keeps_order_and_clear_scene_does_not_leak(br):
     me.polygons.foreach_get("loop_total", sizes)
     assert np.array_equal(sizes, fs)
     gi = ob.vertex_groups["weights"].index
-    got = np.array([next(g.weight for g in me.vertices[i].groups if g.group == gi) for i in (0, len(V) // 2, len(V) - 1)])
+    got = np.array([next(g.weight for g in me.vertices[i].groups if g.group == gi)
+                    for i in (0, len(V) // 2, len(V) - 1)])
     assert np.allclose(got, w[[0, len(V) // 2, len(V) - 1]], atol=1e-7)
     br.clear_scene()
     for _ in range(3):

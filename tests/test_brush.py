@@ -759,7 +759,8 @@ def test_split_solve_matches_a_dense_solve(w, h, eight, monkeypatch):
     k, R, C, V, diag, rhs, A = _grid_system(w, h, seed=w * h, eight=eight)
     seen = []
     real = K.split_solve
-    monkeypatch.setattr(K, "split_solve", lambda *a: seen.append((a[-5].copy(), a[-3].copy())) or real(*a))   # perm, dims
+    # record perm and dims of every call
+    monkeypatch.setattr(K, "split_solve", lambda *a: seen.append((a[-5].copy(), a[-3].copy())) or real(*a))
     brush = sf.Brush(grid(5, 5), radius=1.0)
     X, used, bw = brush._solve_spd(k, R, C, V, diag, rhs)
     assert used == "split"

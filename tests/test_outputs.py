@@ -100,7 +100,8 @@ def no_work(monkeypatch):
 
 
 @pytest.mark.parametrize("args,match", [
-    (["smooth", "example:spot", "{tmp}/missing/out.obj", "--strength", "1"], "output folder '{tmp}/missing' does not exist"),
+    (["smooth", "example:spot", "{tmp}/missing/out.obj", "--strength", "1"],
+     "output folder '{tmp}/missing' does not exist"),
     (["smooth", "example:spot", "{tmp}/o.obj", "--strength", "1", "--image", "{tmp}/nope/i.png"],
      "output folder '{tmp}/nope' does not exist"),
     (["smooth", "example:spot", "{tmp}", "--strength", "1"], "{tmp}: is a directory"),

@@ -338,7 +338,8 @@ def test_image_up_axis_option(tmp_path, capsys):
     """--image-up z stands a z-up model upright: the picture is taller than wide."""
     from shapeflow.cli import main
 
-    V = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 3], [0, 0, 3], [0, 0.2, 0], [1, 0.2, 0], [1, 0.2, 3], [0, 0.2, 3]], float)
+    V = np.array([[0, 0, 0], [1, 0, 0], [1, 0, 3], [0, 0, 3],
+                  [0, 0.2, 0], [1, 0.2, 0], [1, 0.2, 3], [0, 0.2, 3]], float)
     faces = [[0, 1, 2, 3], [5, 4, 7, 6], [4, 0, 3, 7], [1, 5, 6, 2], [3, 2, 6, 7], [4, 5, 1, 0]]
     src = tmp_path / "tall_z.obj"
     sf.save(src, sf.Mesh(V, faces))

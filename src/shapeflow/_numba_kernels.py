@@ -1257,7 +1257,6 @@ def split_solve(pbtrf, tbtrs, potrf, potrs, trsm, syrk, gemm, set_threads,
     nB = dims[1]
     nS = dims[2]
     e = nA + nB
-    k = perm.size
     Lc = np.array([76], np.uint8)   # 'L'
     Nc = np.array([78], np.uint8)   # 'N'
     Tc = np.array([84], np.uint8)   # 'T'

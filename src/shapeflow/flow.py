@@ -668,7 +668,8 @@ class FlowSolver:
         if preserve_volume:
             inc = int(topo.inconsistent_edge_mask.sum())
             if inc:
-                report.notes.append(f"{inc} edges with inconsistent face orientation: the volume being preserved is ill-defined")
+                report.notes.append(f"{inc} edges with inconsistent face orientation: "
+                                    "the volume being preserved is ill-defined")
         center0 = V0.mean(axis=0) if preserve_volume else None
         n_solves = iterations if update == "fixed" else 1
         V = V0                     # read only: every step returns new positions

@@ -324,7 +324,7 @@ class _Level:
     # --- matrices --------------------------------------------------------
     def simple_matrix(self) -> sp.csr_matrix:
         t = self.t
-        n, E, F = self.n, self.E, self.F
+        n, E = self.n, self.E
         e = t.edges[self.eorder]
         top = sp.identity(n, format="csr")
         mid = sp.csr_matrix((np.full(2 * E, 0.5), e.reshape(-1), np.arange(E + 1) * 2), shape=(E, n))

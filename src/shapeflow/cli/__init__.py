@@ -17,7 +17,8 @@ import threading
 from ..errors import OptionalDependencyError, ShapeflowError
 
 #: subcommand modules, in the order ``--help`` lists them
-COMMANDS = ["info", "flow", "subdivide", "family", "brush", "render", "curvature"]  # flow.py registers flow, enhance and smooth
+# (flow.py registers flow, enhance and smooth)
+COMMANDS = ["info", "flow", "subdivide", "family", "brush", "render", "curvature"]
 
 
 def build_parser() -> argparse.ArgumentParser:

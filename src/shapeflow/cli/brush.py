@@ -43,7 +43,8 @@ def register(sub) -> None:
     p.add_argument("--area-normalized", action="store_true",
                    help="area-normalised operator (eq. 9) instead of the normalised one (eq. 10)")
     p.add_argument("--scheme", choices=["tqlbo", "blender"], default="tqlbo", help="cotangent weights")
-    p.add_argument("--force", action="store_true", help="allow OUTPUT to be the input file, or a read-only file (overwrite it)")
+    p.add_argument("--force", action="store_true",
+                   help="allow OUTPUT to be the input file, or a read-only file (overwrite it)")
     p.add_argument("--quiet", "-q", action="store_true", help="no summary on stderr")
     add_image_options(p)
     p.set_defaults(func=run)

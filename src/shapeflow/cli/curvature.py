@@ -30,7 +30,8 @@ def register(sub) -> None:
     p.add_argument("--view", default="iso", help="view for --image (front, side, top, iso, AZ,EL; default iso)")
     p.add_argument("--up", choices=["y", "z"], default="y", help="the model's up axis for --image (default y)")
     p.add_argument("--size", default="800x600", metavar="WxH", help="size of --image (default 800x600)")
-    p.add_argument("--force", action="store_true", help="allow OUT to be the input file, or a read-only file (overwrite it)")
+    p.add_argument("--force", action="store_true",
+                   help="allow OUT to be the input file, or a read-only file (overwrite it)")
     p.add_argument("--quiet", "-q", action="store_true", help="no summary on stderr")
     p.set_defaults(func=run)
 

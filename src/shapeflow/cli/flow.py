@@ -30,8 +30,10 @@ def _add_common(p) -> None:
                    help="cotangent weights (default: tqlbo, or blender with --compat blender)")
     p.add_argument("--update", choices=["fixed", "recompute"], default="fixed",
                    help="keep the first iteration's operator (Blender) or rebuild it every iteration")
-    p.add_argument("--solver", choices=["auto", "cg", "cholesky", "lu", "chebyshev"], default="auto", help="linear solver")
-    p.add_argument("--force", action="store_true", help="allow OUTPUT to be the input file, or a read-only file (overwrite it)")
+    p.add_argument("--solver", choices=["auto", "cg", "cholesky", "lu", "chebyshev"], default="auto",
+                   help="linear solver")
+    p.add_argument("--force", action="store_true",
+                   help="allow OUTPUT to be the input file, or a read-only file (overwrite it)")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress or summary on stderr")
     add_image_options(p)
 
@@ -62,7 +64,8 @@ def weights_arg(value: str | None, mesh):
 
         return load_weights(value, mesh.n_vertices)
     have = ", ".join(mesh.attributes) or "none"
-    raise ParameterError(f"--weights {value!r} is neither a file nor a vertex attribute of the input (attributes: {have})")
+    raise ParameterError(f"--weights {value!r} is neither a file nor a vertex attribute of the input "
+                         f"(attributes: {have})")
 
 
 def flow_kwargs(args, mesh) -> dict:

@@ -35,7 +35,8 @@ def describe(mesh, name: str = "mesh") -> str:
     lines.append(f"  euler char.     {t.euler_characteristic}")
     nb = int(t.boundary_edge_mask.sum())
     if nb:
-        lines.append(f"  boundary        {t.boundary_loop_count} loop(s), {nb} edges, {t.boundary_vertices.size} vertices")
+        lines.append(f"  boundary        {t.boundary_loop_count} loop(s), {nb} edges, "
+                     f"{t.boundary_vertices.size} vertices")
     else:
         lines.append("  boundary        none (closed)")
     d = mesh.diagnostics()
