@@ -854,3 +854,17 @@ def test_split_dabs_equal_one_band_dabs():
         assert a.last.indices.size >= 1000
         np.testing.assert_array_equal(a.last.indices, b.last.indices)
         assert np.abs(a.last.positions - b.last.positions).max() <= 1e-10 * mesh.diagonal
+
+
+def test_a_fallback_from_the_split_solver_is_reported(monkeypatch):
+    import shapeflow.brush as B
+
+    if not sf.kernels.available():
+        pytest.skip("the split solver needs numba (the 'fast' extra)")
+    monkeypatch.setattr(B, "_split_routines", lambda: None)   # as on a SciPy without OpenBLAS's setter
+    monkeypatch.setitem(B.FALLBACKS, "split", "the split solver is unavailable here")
+    mesh = sf.load_example("spot")
+    brush = sf.Brush(mesh, lam=-20.0, radius=0.9)
+    brush.dab(mesh.vertices.mean(axis=0))
+    assert brush.last.n_inside >= B.SPLIT_MIN
+    assert brush.last.solver == "banded" and brush.last.notes == ["the split solver is unavailable here"]

@@ -76,6 +76,7 @@ faster than fancy indexing for 1-D arrays and ~4× for rows of an (n, 3) array.
 from __future__ import annotations
 
 import functools
+import logging
 import math
 import threading
 import time
@@ -266,15 +267,16 @@ class _SingleThreadBLAS:
                     cls._setter = f
                     cls._how = "local"
                     return cls._how
-        except Exception:  # pragma: no cover - platform dependent
-            pass
+        except Exception as exc:  # pragma: no cover - platform dependent
+            _fallback("blas-local", f"OpenBLAS's thread-local setter could not be loaded ({type(exc).__name__}: {exc})")
         try:  # pragma: no cover - depends on what is installed
             from threadpoolctl import ThreadpoolController
 
             cls._controller = ThreadpoolController()
             cls._how = "threadpoolctl"
-        except Exception:
-            pass
+        except Exception as exc:
+            _fallback("blas", "LAPACK's banded Cholesky may use several OpenBLAS threads: no thread-local setter "
+                              f"and no threadpoolctl ({type(exc).__name__})")
         return cls._how
 
     def __enter__(self):
@@ -301,6 +303,8 @@ def _split_routines():
     ``cython_lapack``/``cython_blas``) and OpenBLAS's thread-local thread count
     setter, or None where any is missing (the one-band solver is used then)."""
     if _SingleThreadBLAS._find() != "local":
+        _fallback("split", "the two-thread split solver needs the thread-local setter of the OpenBLAS in SciPy's "
+                           "wheels; dabs use one band")
         return None
     try:
         import ctypes
@@ -316,9 +320,23 @@ def _split_routines():
             fns.append(ctypes.CFUNCTYPE(None, *([vp] * nargs))(addr))
         addr = ctypes.cast(_SingleThreadBLAS._setter, vp).value
         fns.append(ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_int)(addr))
-    except Exception:  # pragma: no cover - depends on the SciPy build
+    except Exception as exc:  # pragma: no cover - depends on the SciPy build
+        _fallback("split", f"SciPy's LAPACK/BLAS pointers are not available ({type(exc).__name__}: {exc}); "
+                           "dabs use one band")
         return None
     return tuple(fns)
+
+
+#: why an optional fast path is not used in this process (key -> reason); each is logged once
+FALLBACKS: dict[str, str] = {}
+_log = logging.getLogger("shapeflow")
+
+
+def _fallback(key: str, reason: str) -> None:
+    """Record (and log once, at INFO on the "shapeflow" logger) that a fast path falls back."""
+    if key not in FALLBACKS:
+        FALLBACKS[key] = reason
+        _log.info("shapeflow brush: %s", reason)
 
 
 def _sq_norms(D: np.ndarray) -> np.ndarray:
@@ -480,6 +498,7 @@ class Dab:
     solver : how the system was solved ("split", "banded", "lu", "cholesky", "inflate" or "none").
     bandwidth : band of the interior system (banded solver; the wider half's for "split").
     seconds : time spent computing the dab (commit excluded).
+    notes : fast paths this dab could not take, and why (``Brush.FALLBACKS`` has them all).
     """
 
     center: np.ndarray
@@ -492,6 +511,7 @@ class Dab:
     solver: str = "none"
     bandwidth: int = 0
     seconds: float = 0.0
+    notes: list = field(default_factory=list)
     _internal: np.ndarray | None = field(default=None, repr=False, compare=False)
 
     @property
@@ -1268,6 +1288,7 @@ class Brush(_BrushBase):
                     free_i=free_i, free_b=free_b)
 
     def _compute(self, c: np.ndarray) -> Dab:
+        self._notes = []   # fallbacks taken by this dab (calls are serialised: one dab at a time)
         S, d = self._query(c, self._radius)
         if S.size == 0:
             return Dab(c, self._radius, np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)))
@@ -1327,7 +1348,7 @@ class Brush(_BrushBase):
         else:
             idx, new, old = (np.concatenate(p) for p in (idx_parts, new_parts, old_parts))
         return Dab(c, self._radius, self._perm[idx], new, old, rim=self._perm[rim], n_inside=ns,
-                   solver=solver_used, bandwidth=bw, _internal=idx)
+                   solver=solver_used, bandwidth=bw, notes=self._notes, _internal=idx)
 
     def _assemble_compiled(self, S, R, loc, cdiag, Rb, Xb):
         """The interior system of a dab in one compiled pass (``brush_assemble``):
@@ -1559,6 +1580,8 @@ class Brush(_BrushBase):
         K = kernels.get(k, min_size=0)
         fns = None if K is None else _split_routines()
         if fns is None or K.get_num_threads() < 2:
+            if K is not None and fns is None:
+                self._notes.append(FALLBACKS.get("split", "split solver unavailable"))
             return None
         perm, inv, o1, o2, lev1, lev2 = np.empty((6, k), np.int64)
         dims = np.empty(7, np.int64)
