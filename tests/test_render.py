@@ -357,3 +357,21 @@ def test_image_up_axis_option(tmp_path, capsys):
     capsys.readouterr()
     assert heights["z"][0] > heights["z"][1]           # upright
     assert heights["y"][0] < heights["y"][1]           # lying down
+
+
+def test_rendering_changes_no_process_wide_state(tmp_path):
+    pytest.importorskip("vtk")
+    import os
+
+    from vtkmodules.vtkCommonCore import vtkObject
+
+    from shapeflow import rendering
+
+    if not rendering.available():
+        pytest.skip("rendering unavailable")
+    env = dict(os.environ)
+    warn = vtkObject.GetGlobalWarningDisplay()
+    img = rendering.render(sf.load_example("spot"), tmp_path / "s.png", size=(160, 120))
+    assert img.shape[:2] == (120, 160) and (img < 250).any()          # something was drawn
+    assert dict(os.environ) == env
+    assert vtkObject.GetGlobalWarningDisplay() == warn

@@ -94,6 +94,7 @@ class RenderBackendError(OptionalDependencyError):
 # optional dependencies and the OpenGL back end
 
 _BACKEND_CHECKED = False
+_WINDOW_CLASS: str | None = None   # the offscreen window class chosen by _choose_backend (None: VTK's default)
 
 
 def _egl_works() -> bool:
@@ -154,15 +155,19 @@ def _osmesa_present() -> bool:
 
 
 def _choose_backend() -> None:
-    """Point VTK at an offscreen OpenGL window class before it makes one (Linux only)."""
-    global _BACKEND_CHECKED
+    """Choose the offscreen OpenGL window class (Linux), once; the environment is not touched.
+
+    EGL where it initialises, else OSMesa, else VTK's default window (X, with
+    ``DISPLAY``).  A ``VTK_DEFAULT_OPENGL_WINDOW`` the user set is left to VTK.
+    """
+    global _BACKEND_CHECKED, _WINDOW_CLASS
     if _BACKEND_CHECKED:
         return
     if sys.platform.startswith("linux") and not os.environ.get("VTK_DEFAULT_OPENGL_WINDOW"):
         if _egl_works():
-            os.environ["VTK_DEFAULT_OPENGL_WINDOW"] = "vtkEGLRenderWindow"
+            _WINDOW_CLASS = "vtkEGLRenderWindow"
         elif _osmesa_present():
-            os.environ["VTK_DEFAULT_OPENGL_WINDOW"] = "vtkOSMesaRenderWindow"
+            _WINDOW_CLASS = "vtkOSOpenGLRenderWindow"
         elif not os.environ.get("DISPLAY"):
             raise RenderBackendError(
                 "rendering needs offscreen OpenGL and none is usable here: install Mesa's EGL "
@@ -176,7 +181,7 @@ def _vtk():
     try:
         import vtkmodules.vtkRenderingOpenGL2  # noqa: F401  (registers the OpenGL factories)
         from vtkmodules.util import numpy_support
-        from vtkmodules.vtkCommonCore import vtkLogger, vtkLookupTable, vtkObject, vtkPoints
+        from vtkmodules.vtkCommonCore import vtkLookupTable, vtkObject, vtkPoints
         from vtkmodules.vtkCommonDataModel import vtkCellArray, vtkPolyData
         from vtkmodules.vtkRenderingCore import (
             vtkActor,
@@ -188,11 +193,11 @@ def _vtk():
         )
     except ImportError as exc:
         raise OptionalDependencyError("vtk", "render", "rendering") from exc
-    vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_ERROR)
-    vtkObject.GlobalWarningDisplayOff()
+    import vtkmodules.vtkRenderingOpenGL2 as opengl2
     from types import SimpleNamespace
 
-    return SimpleNamespace(np=numpy_support, vtkPoints=vtkPoints, vtkLookupTable=vtkLookupTable,
+    return SimpleNamespace(np=numpy_support, opengl2=opengl2, vtkObject=vtkObject, vtkPoints=vtkPoints,
+                           vtkLookupTable=vtkLookupTable,
                            vtkCellArray=vtkCellArray, vtkPolyData=vtkPolyData, vtkActor=vtkActor,
                            vtkLightKit=vtkLightKit, vtkPolyDataMapper=vtkPolyDataMapper,
                            vtkRenderer=vtkRenderer, vtkRenderWindow=vtkRenderWindow,
@@ -511,7 +516,8 @@ class _Window:
 
     def __init__(self, vtk, size, transparent: bool, msaa: bool = True):
         self.vtk = vtk
-        self.win = vtk.vtkRenderWindow()
+        cls = getattr(vtk.opengl2, _WINDOW_CLASS, None) if _WINDOW_CLASS else None
+        self.win = cls() if cls is not None else vtk.vtkRenderWindow()
         self.win.SetOffScreenRendering(1)
         if transparent:
             self.win.SetAlphaBitPlanes(1)
@@ -858,8 +864,13 @@ def render_meshes(meshes: Sequence, path=None, *, grid=None, colors=None, labels
     bgpix = np.array([255, 255, 255, 0][:nch], np.uint8)
     canvas = np.empty((rows * h + bar_h, cols * w, nch), np.uint8)
     canvas[:] = bgpix
-    win = _Window(vtk, (w, view_h), transparent, msaa=max(m.n_faces for m in meshes) <= MSAA_MAX_FACES)
+    # VTK's warnings off while we draw (offscreen drivers print harmless ones), the caller's
+    # settings restored afterwards: rendering changes no process-wide state
+    warn_display = vtk.vtkObject.GetGlobalWarningDisplay()
+    vtk.vtkObject.GlobalWarningDisplayOff()
+    win = None
     try:
+        win = _Window(vtk, (w, view_h), transparent, msaa=max(m.n_faces for m in meshes) <= MSAA_MAX_FACES)
         for i, (mesh, field, cam) in enumerate(zip(meshes, fields, cams)):
             r, c = divmod(i, cols)
             actor = _actor(vtk, mesh, field, clim=clim, cmap=cmap, smooth=shadings[i] == "smooth", edges=edge_flags[i],
@@ -870,7 +881,9 @@ def render_meshes(meshes: Sequence, path=None, *, grid=None, colors=None, labels
                 canvas[y0:y0 + fs_band, x0:x0 + w] = _label_band(w, fs_band, labels[i], transparent)
             canvas[y0 + fs_band:y0 + h, x0:x0 + w] = img
     finally:
-        win.close()
+        if win is not None:
+            win.close()
+        vtk.vtkObject.SetGlobalWarningDisplay(warn_display)
     if show_bar:
         canvas[rows * h:, :] = _colorbar(cols * w, bar_h, cmap, clim, bar_label, diverging, transparent)
     if path is not None:
