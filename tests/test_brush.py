@@ -385,6 +385,8 @@ def test_kernels_switched_off_on_a_live_brush():
     with sf.kernels.enabled(False):
         b.dab(c[1])
     b.dab(c[2])
+    # the index follows the switch: built at construction (grid), rebuilt when the kernels go off
+    # (SciPy's k-d tree) and again when they come back (grid): three builds, no more
     assert b.tree_rebuilds == 3
     assert np.abs(b.vertices - ref.vertices).max() <= 1e-12 * mesh.diagonal
 
