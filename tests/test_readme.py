@@ -36,3 +36,13 @@ def test_readme_starts_with_the_two_commands_and_ci_runs_the_test_command():
     assert tests.endswith("python -m pytest -q")
     assert tests in CI.read_text(encoding="utf-8")
     assert len(text.splitlines()) < 200
+
+
+def test_docs_home_page_is_the_readme():
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("make_index", ROOT / "docs" / "make_index.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    assert (ROOT / "docs" / "index.md").read_text(encoding="utf-8") == mod.index_text(), \
+        "docs/index.md is out of date: python docs/make_index.py"

@@ -773,8 +773,8 @@ def render_meshes(meshes: Sequence, path=None, *, grid=None, colors=None, labels
     framing : {"shared", "rows", "each"}
         One camera fitted to all meshes (sizes comparable), one per row of
         the grid, or one per mesh.
-
-    The other parameters are those of :func:`render`.
+    color, view, up, colorbar, cmap, clim, transparent, curvature_area, edge_color, line_width
+        As in :func:`render`.
     """
     meshes = list(meshes)
     k = len(meshes)
