@@ -2,7 +2,7 @@
 
     python docs/gallery.py [FIGURE ...] [--shared DIR] [--out DIR]
 
-FIGURE is any of ``fig1 fig5 fig6 fig7 fig8 fig11`` (default: all).  Needs the
+FIGURE is any of ``fig1 fig5 fig6 fig7 fig8 fig9 fig11`` (default: all).  Needs the
 render extra (``pip install 'shapeflow[render]'``) and the shared meshes
 (``../shared/meshes`` beside the repository, or ``--shared`` /
 ``$SHAPEFLOW_SHARED``).  Each picture is saved as a 256-colour dithered PNG to
@@ -20,6 +20,8 @@ Hybrid Quad/Triangle Meshes"):
 * fig7  λ=7, 2 iterations on the triangle, quad and randomly mixed versions of Spot;
 * fig8  camel, λ = −30, −100, −400; weighted enhancement of the legs
         (λ=−50, 2 iterations) and of the head and neck (λ=−200);
+* fig9  one stroke along Spot's back: the enhancement brush (λ=−30 per dab) against an
+        inflate brush, coloured by displacement;
 * fig11 normalised (eq. 10) vs area-normalised (eq. 9) operator, λ=−50, on a
         model and on the same model scaled by 4.
 """
@@ -215,6 +217,36 @@ def figure8_camel(meshes: Path, out: Path) -> str:
             f"{int((legs_w > 0).sum())}, head and neck {int((head_w > 0).sum())}")
 
 
+def figure9_brushes(meshes: Path, out: Path) -> str:
+    """FIGURE 9: one stroke along Spot's back with the shape-enhancement brush (section 4.3,
+    λ=−30 per dab) and with an inflate brush (each dab moves along the vertex normals); colours
+    show how far each vertex moved. The enhancement brush exaggerates the shape that is there
+    (ridges grow, hollows deepen); inflating swells everything under the stroke alike."""
+    spot = load(meshes, "spot_quad")
+    V = spot.vertices
+    # a stroke along the back (the head lies towards −z): the highest vertex of each slice
+    stroke = []
+    for z in np.linspace(0.15, 0.7, 8):
+        sl = np.flatnonzero(np.abs(V[:, 2] - z) < 0.04)
+        stroke.append(V[sl[np.argmax(V[sl, 1])]])
+    stroke = np.array(stroke)
+    radius = 0.15
+    enh = sf.Brush(spot, lam=-30.0, radius=radius, falloff="smooth")
+    enh.stroke(stroke)
+    inf = sf.InflateBrush(spot, strength=0.06, radius=radius, falloff="smooth")
+    inf.stroke(stroke)
+    img = render_meshes(
+        [spot, enh.mesh, inf.mesh], None, grid=(1, 3),
+        labels=["Spot", "enhancement brush, λ=-30", "inflate brush"],
+        color=["none", "displacement", "displacement"], reference=[spot, spot, spot],
+        view=(-60, 25), size=(320, 300))
+    path = out / "fig9_brushes.png"
+    kb = save_small(path, img) / 1e3
+    moved = [np.linalg.norm(b.vertices - V, axis=1) for b in (enh, inf)]
+    return (f"{path.name} ({kb:.0f} KB): {len(stroke)} stroke points; max move enhance "
+            f"{moved[0].max():.4f}, inflate {moved[1].max():.4f} (diagonal {spot.diagonal:.3f})")
+
+
 def figure11_normalisation(meshes: Path, out: Path) -> str:
     """Spot scaled so that its mean edge length is 1 (×1) and 4 times larger (×4); λ=−50 with the
     normalised operator (eq. 10, the default) and the area-normalised one (eq. 9,
@@ -249,6 +281,7 @@ FIGURES = {
     "fig6": figure6_smooth_enhance,
     "fig7": figure7_tri_quad_mixed,
     "fig8": figure8_camel,
+    "fig9": figure9_brushes,
     "fig11": figure11_normalisation,
 }
 
