@@ -88,7 +88,7 @@ import scipy.sparse as sp
 
 from . import kernels, params
 from .errors import ParameterError
-from .flow import _finite, resolve_weights
+from .flow import resolve_weights
 from .geometry import refresh_normals
 from .mesh import Mesh
 from .operators import REL_EDGE_TOL, REL_SHAPE_TOL, _check_scheme, _structure
@@ -144,10 +144,7 @@ def _serialised(fn):
 
 
 def _positive(name: str, x) -> float:
-    v = _finite(name, x)
-    if v <= 0:
-        raise ParameterError(f"{name} must be > 0, got {v}")
-    return v
+    return params.number(name, x, lo=0.0, lo_open=True)
 
 
 def _smooth_falloff(t: np.ndarray) -> np.ndarray:
@@ -774,8 +771,7 @@ class _BrushBase:
         what it did).  ``progress(done, total)`` is called after each dab.  Returns
         the sorted indices of every vertex moved.
         """
-        if progress is not None and not callable(progress):
-            raise ParameterError(f"progress must be a callable(done, total) or None, got {progress!r}")
+        params.progress(progress)
         P = self.dab_centers(points, spacing)
         self._pending = None
         self._group = []
@@ -1672,7 +1668,7 @@ class InflateBrush(_BrushBase):
     @strength.setter
     @_serialised
     def strength(self, v) -> None:
-        self._strength = _finite("strength", v)
+        self._strength = params.number("strength", v)
 
     def _normals(self, S: np.ndarray) -> np.ndarray:
         """Unit area-weighted normals of vertices ``S`` (zero where undefined)."""

@@ -421,8 +421,7 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
     lam_arr = _check_lams(lams)
     preserve_volume = params.flag("preserve_volume", preserve_volume)
     return_report = params.flag("return_report", return_report)
-    if progress is not None and not callable(progress):
-        raise ParameterError(f"progress must be a callable(done, total) or None, got {progress!r}")
+    params.progress(progress)
     fs = FlowSolver(mesh, lam_border=lam_border, normalized=normalized, weights=weights,
                     invert_weights=invert_weights, scheme=scheme, compat=compat, solver=solver, rtol=rtol)
     if fs._pow2:   # extreme coordinates: the family of the exact power-of-two copy, scaled back

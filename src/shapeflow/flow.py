@@ -73,10 +73,6 @@ FLOW_SOLVERS = (*METHODS, "chebyshev")
 # parameters
 # --------------------------------------------------------------------------
 
-def _finite(name: str, x) -> float:
-    return params.number(name, x)
-
-
 #: From this |λ| on, the solution's conserved means are restored after each solve
 #: (:meth:`_System.restore_means`); below it the solvers' own accuracy is far below ``rtol``.
 MEAN_RESTORE_FROM = 1e6
@@ -383,7 +379,7 @@ class FlowSolver:
         if tiny.any():
             notes.append(f"{int(tiny.sum())} vertices kept fixed: |λ|·weight is so small that their step "
                          "moves nothing representable")
-        free &= np.isfinite(c)
+        free &= ~tiny
         if not free.any():
             return None
         c[~free] = 0.0
@@ -475,7 +471,8 @@ class FlowSolver:
         """Carry a solver's fallback (CG short of its tolerance, redone by LU) into the report."""
         if system is not None and system.solver.stats.fallback:
             report.notes.append(system.solver.stats.fallback)
-            report.solver = system.solver.method if system.idx is None else report.solver
+            if system.idx is None:   # the interior system names the run's solver
+                report.solver = system.solver.method
 
     def _step(self, V: np.ndarray, lam: float, lam_b: float, isys: _System | None,
               bsys: _System | None, boundary: np.ndarray, axes: np.ndarray, report: FlowReport) -> np.ndarray:
@@ -644,8 +641,7 @@ class FlowSolver:
         if self._pow2 and not self.normalized:   # eq. 9: C = 2A/(|λ|w) and A scales by 4^-k
             lam = float(np.ldexp(lam, -2 * self._pow2))
         preserve_volume = params.flag("preserve_volume", preserve_volume)
-        if progress is not None and not callable(progress):
-            raise ParameterError(f"progress must be a callable(done, total) or None, got {progress!r}")
+        params.progress(progress)
         lam_b = self.lam_border
         ax = check_run_options(iterations, update, axes, self.blender)
         report = FlowReport(lam=lam_user, lam_border=lam_b, iterations=int(iterations),
@@ -715,25 +711,22 @@ class FlowSolver:
         return self._result(V, report, t0)
 
     def _result(self, V: np.ndarray, report: FlowReport, t0: float) -> Mesh:
-        V0 = self.mesh.vertices
+        moved = V is not self.mesh.vertices
+        with np.errstate(over="ignore"):   # measured at the computed scale, scaled back exactly (2^0 = 1)
+            report.max_displacement = float(np.ldexp(_max_row_distance(V, self.mesh.vertices), self._pow2))
+        mesh = self.input_mesh
         if self._pow2:   # back to the caller's scale, exactly
             report.notes.append(f"computed on the coordinates scaled by 2^{-self._pow2} (exact), then scaled back")
-            moved = V is not V0
-            with np.errstate(over="ignore"):
-                report.max_displacement = float(np.ldexp(_max_row_distance(V, V0), self._pow2))
-                V, V0 = np.ldexp(V, self._pow2), self.input_mesh.vertices
-            if not np.isfinite(V).all():
-                raise ParameterError("lam: the result leaves the range of double precision (|x| > 1.8e308)")
-            if not moved:
-                V = V0
-        mesh = self.input_mesh
-        if V is V0:
-            out = mesh.with_vertices(V0)
+            if moved:
+                with np.errstate(over="ignore"):
+                    V = np.ldexp(V, self._pow2)
+                if not np.isfinite(V).all():
+                    raise ParameterError("lam: the result leaves the range of double precision (|x| > 1.8e308)")
+        if not moved:
+            out = mesh.with_vertices(mesh.vertices)
         else:   # V is a new array of this run: handed over without a copy (validated if not finite)
             out = mesh._with_own_vertices(V)
-        if not self._pow2:
-            report.max_displacement = _max_row_distance(V, V0)
-        if V is not V0 and any(k in out.attributes for k in NORMAL_ATTRIBUTES):
+        if moved and any(k in out.attributes for k in NORMAL_ATTRIBUTES):
             out = refresh_normals(out)
             report.notes.append("vertex normals (nx, ny, nz) recomputed from the new surface")
         report.seconds = time.perf_counter() - t0
@@ -817,7 +810,7 @@ def flow(mesh: Mesh, lam: float, *, lam_border: float = 0.0, iterations: int = 1
 
 
 def _strength(s) -> float:
-    v = _finite("strength", s)
+    v = params.number("strength", s)
     if v < 0:
         raise ParameterError(f"strength must be >= 0 (use flow() for a signed λ), got {v}")
     return v

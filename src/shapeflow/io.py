@@ -575,10 +575,14 @@ class _Text:
         raise self.error(toks[0], f"cannot read the {what}s starting here")  # pragma: no cover
 
 
+def _strip_bom(data: bytes) -> bytes:
+    """``data`` without a leading UTF-8 byte-order mark (written by some editors)."""
+    return data[3:] if data.startswith(b"\xef\xbb\xbf") else data
+
+
 def _text_data(data: bytes, name: str, kind: str) -> bytes:
     """Checks common to text formats: not empty, not binary; strips a BOM."""
-    if data.startswith(b"\xef\xbb\xbf"):
-        data = data[3:]
+    data = _strip_bom(data)
     if not data.strip():
         raise MeshError(f"{name}: empty file")
     nul = data.find(b"\x00")
@@ -926,9 +930,7 @@ def _read_binary_element(buf: bytes, arr: np.ndarray, pos: int, el: _Element, na
     if least and n > (L - pos) // least:
         raise trunc(max(L - pos, 0) // least)
     if not any(p.is_list for p in props):
-        dt = np.dtype([(f"p{i}", p.dtype) for i, p in enumerate(props)])
-        if pos + n * dt.itemsize > L:
-            raise trunc((L - pos) // max(dt.itemsize, 1))
+        dt = np.dtype([(f"p{i}", p.dtype) for i, p in enumerate(props)])   # n records fit: checked above
         rec = np.frombuffer(buf, dtype=dt, count=n, offset=pos)
         return {p.name: rec[f"p{i}"] for i, p in enumerate(props)}, pos + n * dt.itemsize
     counts = _binary_list_counts(buf, pos, el, name, trunc)
@@ -1110,8 +1112,7 @@ def _read_ascii_element(txt: _Text, r0: int, el: _Element, name: str):
 def _read_ply(data: bytes, name: str) -> Mesh:
     if not data.strip():
         raise MeshError(f"{name}: empty file")
-    if data.startswith(b"\xef\xbb\xbf"):   # a UTF-8 byte-order mark (written by some editors)
-        data = data[3:]
+    data = _strip_bom(data)   # the header is text even when the body is binary
     first_line = data.split(b"\n", 1)[0].strip()
     if first_line != b"ply":
         raise MeshError(f"{name}: line 1: not a PLY file (the first line must be 'ply')")
@@ -1232,9 +1233,8 @@ def _ply_attributes(mesh: Mesh) -> dict[str, np.ndarray]:
     return out
 
 
-#: NumPy type -> PLY type of an attribute (64-bit integers: int where they fit, else double)
-_PLY_NAMES = {"i1": "char", "u1": "uchar", "i2": "short", "u2": "ushort", "i4": "int", "u4": "uint",
-              "f4": "float", "f8": "double"}
+#: NumPy type -> PLY type name: _PLY_TYPES read backwards, the classic names (char, uchar, ...) winning
+_PLY_NAMES = {code: name for name, code in reversed(list(_PLY_TYPES.items()))}
 
 
 def _ply_type(values: np.ndarray) -> np.dtype:

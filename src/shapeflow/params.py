@@ -15,7 +15,7 @@ import numpy as np
 
 from .errors import ParameterError
 
-__all__ = ["LAMBDA_MAX", "number", "real_array", "lam", "flag", "integer", "rtol", "axes"]
+__all__ = ["LAMBDA_MAX", "number", "real_array", "lam", "flag", "integer", "progress", "rtol", "axes"]
 
 #: The largest |λ| (and |λ_b|) the flow accepts.  The scaled system's diagonal
 #: term is m/|λ|: past ~1e15 it vanishes against the Laplacian in double
@@ -97,6 +97,13 @@ def integer(name: str, x, *, lo: int = 0, hi: int | None = None) -> int:
     return v
 
 
+def progress(x):
+    """A progress callback: None or a callable(done, total)."""
+    if x is not None and not callable(x):
+        raise ParameterError(f"progress must be a callable(done, total) or None, got {x!r}")
+    return x
+
+
 def rtol(x) -> float:
     """A solver tolerance in (0, 1)."""
     v = number("rtol", x, lo=0.0, lo_open=True)
@@ -122,10 +129,8 @@ def axes(x) -> np.ndarray:
         raise ParameterError(f"axes must have three entries (x, y, z), got {len(items)}")
     out = []
     for i, a in enumerate(items):
-        if isinstance(a, (bool, np.bool_)):
-            out.append(bool(a))
-        elif isinstance(a, (numbers.Integral, np.integer)) and int(a) in (0, 1):
-            out.append(bool(a))
-        else:
+        if not (isinstance(a, (bool, np.bool_))
+                or (isinstance(a, (numbers.Integral, np.integer)) and int(a) in (0, 1))):
             raise ParameterError(f"axes[{i}] must be True/False (or 0/1), got {a!r}")
+        out.append(bool(a))
     return np.array(out)

@@ -266,10 +266,11 @@ def chebyshev_coefficients(f, a: float, b: float, max_degree: int = 2048):
     while True:
         c = chebyshev.chebinterpolate(lambda x: f(mid + half * x), degree)
         scale = np.abs(c).sum()
-        if np.abs(c[-8:]).max() <= 2e-14 * scale or degree >= max_degree:
+        resolved = np.abs(c[-8:]).max() <= 2e-14 * scale
+        if resolved or degree >= max_degree:
             break
         degree *= 2
-    if np.abs(c[-8:]).max() > 2e-14 * scale:
+    if not resolved:
         return c, np.full(c.size, np.inf)
     c[np.abs(c) < 2e-14 * scale] = 0.0
     ac = np.abs(c)

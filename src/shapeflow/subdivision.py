@@ -79,9 +79,9 @@ from typing import Callable
 import numpy as np
 import scipy.sparse as sp
 
-from . import kernels
+from . import kernels, params
 from .errors import ParameterError
-from .geometry import NORMAL_ATTRIBUTES, refresh_normals
+from .geometry import refresh_normals
 from .mesh import WEIGHT, Mesh, Topology
 
 __all__ = ["subdivide", "subdivision_matrix", "SCHEMES", "BOUNDARY_RULES", "WEIGHT_RULES"]
@@ -559,9 +559,9 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
     weights_rule = _check_choice("weights_rule", weights_rule, WEIGHT_RULES)
     edge_order = _check_choice("edge_order", edge_order, EDGE_ORDERS)
     threads = _check_threads(blender_threads)
+    params.progress(progress)
 
-    attrs: dict[str, np.ndarray] = {k: np.asarray(v) for k, v in mesh.attributes.items()
-                                    if k not in NORMAL_ATTRIBUTES}      # normals: recomputed at the end
+    attrs: dict[str, np.ndarray] = {k: np.asarray(v) for k, v in mesh.attributes.items()}
     types = {k: v.dtype for k, v in attrs.items()}
     weights = attrs.pop(WEIGHT, None)
     w_scheme = "simple" if weights_rule == "linear" else "catmull-clark"
@@ -571,8 +571,6 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
     topo = mesh.topology
     # each level's matrix is applied as its two factors (S = P @ Q), which is
     # cheaper than forming S for a single use; subdivision_matrix() forms it
-    if progress is not None and not callable(progress):
-        raise ParameterError(f"progress must be a callable(done, total) or None, got {progress!r}")
     for done, (mats, child) in enumerate(_levels(mesh, levels, schemes, boundary, edge_order, threads,
                                                  factored=True), start=1):
         S = mats[scheme]
@@ -595,9 +593,5 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
             attrs[k] = np.clip(np.rint(v), info.min, info.max).astype(dt)
         elif dt != v.dtype:
             attrs[k] = v.astype(dt)
-    out = Mesh(X, None, attributes=attrs, _topology=topo)
-    normals = [k for k in NORMAL_ATTRIBUTES if k in mesh.attributes]
-    if normals:
-        out = refresh_normals(out.with_attributes(**{k: np.zeros(out.n_vertices, mesh.attributes[k].dtype)
-                                                      for k in normals}))
-    return out
+    # normals (nx, ny, nz) were averaged like the rest: recomputed from the new surface, in their type
+    return refresh_normals(Mesh(X, None, attributes=attrs, _topology=topo))
