@@ -115,8 +115,6 @@ def fmt_ms(t: np.ndarray) -> str:
 
 def profile_phases(brush, centres, radii):
     """Median time of each phase of a dab (monkeypatched timers)."""
-    import shapeflow.brush as B
-
     acc: dict = {}
 
     def wrap(obj, name, label):
@@ -127,12 +125,12 @@ def profile_phases(brush, centres, radii):
             out = f(*a, **k)
             acc.setdefault(label, []).append(time.perf_counter() - t0)
             return out
-        setattr(brush, name, g)
+        setattr(obj, name, g)
         return f
 
     wrap(brush, "_query", "spatial query")
     wrap(brush, "_classify", "rim/locks/weights")
-    wrap(brush, "_solve_spd", "linear solve (incl. local RCM)")
+    wrap(brush._local_solver, "solve", "linear solve (incl. local RCM)")
     wrap(brush, "_solve_region", "assembly + solve")
     wrap(brush, "_moved", "cache update (commit)")
     for c, r in zip(centres, radii):
@@ -140,26 +138,29 @@ def profile_phases(brush, centres, radii):
         brush.dab(c)
     for k in list(acc):
         print(f"      {k:32s} {1e3 * statistics.median(acc[k]):6.2f} ms")
-    for name in ("_query", "_classify", "_solve_spd", "_solve_region", "_moved"):
+    for name in ("_query", "_classify", "_solve_region", "_moved"):
         brush.__dict__.pop(name, None)
-    del B
+    brush._local_solver.__dict__.pop("solve", None)
 
 
 def compare_solvers(mesh, lam, centres, radii):
     """Time the linear solve alone for each back end, on the systems of real dabs."""
     import scipy.linalg as sl
 
-    from shapeflow.solvers import cholesky_available
+    from shapeflow.linalg import cholesky_available
 
     captured = []
+    from shapeflow.linalg.local import LocalSolver, csr
+
     probe = sf.Brush(mesh, lam=lam, radius=float(radii[0]))
-    orig = probe._solve_spd
+    solver = probe._local_solver
+    orig = solver.solve
 
-    def grab(k, ri, ci, vi, diag, rhs, grouped=True):
+    def grab(k, ri, ci, vi, diag, rhs, grouped=True, notes=None):
         captured.append((k, ri, ci, vi, diag, rhs))
-        return orig(k, ri, ci, vi, diag, rhs, grouped)
+        return orig(k, ri, ci, vi, diag, rhs, grouped=grouped, notes=notes)
 
-    probe._solve_spd = grab
+    solver.solve = grab
     for c, r in zip(centres, radii):
         probe.radius = r
         probe.preview(c)
@@ -168,17 +169,16 @@ def compare_solvers(mesh, lam, centres, radii):
     out = {m: [] for m in methods + ["dense"]}
     for j, (k, ri, ci, vi, diag, rhs) in enumerate(captured):
         for m in methods[j % len(methods):] + methods[:j % len(methods)]:   # rotated: no method always first
-            probe.solver = m
+            timed = LocalSolver(m)
             t0 = time.perf_counter()
-            orig(k, ri, ci, vi, diag, rhs)
+            timed.solve(k, ri, ci, vi, diag, rhs)
             out[m].append(time.perf_counter() - t0)
     # dense last: its multi-threaded BLAS leaves OpenBLAS threads spinning on the other core
     for (k, ri, ci, vi, diag, rhs) in captured[:3]:
-        A = probe._csr(k, ri, ci, vi, diag).toarray()
+        A = csr(k, ri, ci, vi, diag).toarray()
         t0 = time.perf_counter()
         sl.cho_solve(sl.cho_factor(A), rhs)
         out["dense"].append(time.perf_counter() - t0)
-    probe.solver = "auto"
     ks = [c[0] for c in captured]
     return int(np.median(ks)), {m: 1e3 * statistics.median(v) for m, v in out.items() if v}
 

@@ -110,7 +110,7 @@ def child_million(repeat: int) -> dict:
     t, out = median_time(lambda: sf.flow(sf.Mesh.from_csr(V, S, I), 1.0), repeat)
     peak = peak_rss_mb()
     return {"n": int(V.shape[0]), "seconds": t, "first": t_first, "peak_mb": peak, "before_mb": base,
-            "solver": out.report.solver, "cg": out.report.cg_iterations, "kernels": sf.kernels.available()}
+            "solver": out.report.solver, "cg": out.report.cg_iterations, "kernels": sf.accel.available()}
 
 
 def main(argv=None) -> int:
@@ -164,8 +164,8 @@ def main(argv=None) -> int:
             row(f"  solver={solver:<8s} λ={lam:g}, warm", t)
     tb, _ = median_time(lambda: sf.flow(warm, 1.0, compat="blender"), R)
     row("flow λ=1 compat='blender', warm", tb)
-    if sf.kernels.available():
-        with sf.kernels.enabled(False):
+    if sf.accel.available():
+        with sf.accel.enabled(False):
             tn, _ = median_time(lambda: sf.flow(sf.Mesh.from_csr(V, S, I), 1.0), R)
             row("  without compiled kernels: λ=1, fresh", tn, f"(kernels: {tn / t_fresh:.2f}x faster)")
             wn = sf.Mesh.from_csr(V, S, I)

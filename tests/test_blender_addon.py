@@ -848,7 +848,7 @@ def test_shapeflow_wheel(tmp_path):
     assert p1.read_bytes() == p2.read_bytes()  # reproducible
     with zipfile.ZipFile(p1) as zf:
         names = zf.namelist()
-        assert "shapeflow/__init__.py" in names and "shapeflow/flow.py" in names
+        assert "shapeflow/__init__.py" in names and "shapeflow/flow/solver.py" in names
         assert any(n.startswith("shapeflow/data/") for n in names)
         assert not any(n.startswith("shapeflow/blender") or "__pycache__" in n for n in names)
         meta = zf.read(f"shapeflow-{shapeflow.__version__}.dist-info/METADATA").decode()

@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import tracemalloc
 
+import sys
+
 import numpy as np
 import pytest
 
@@ -13,7 +15,7 @@ from conftest import MESHES, requires_shared
 from meshgen import cube_sphere, grid, icosphere, ngon_disk, random_rotation
 from shapeflow.cli import main
 from shapeflow.geometry import vertex_normals
-from shapeflow.operators import _assemble
+from shapeflow.operators.weights import assemble as _assemble
 
 
 def _pair_weights(mesh, scheme="tqlbo"):
@@ -311,10 +313,10 @@ def test_initial_pair_weights_match_operator(scheme):
 
 @pytest.mark.parametrize("compiled", [False, True])
 def test_caches_follow_the_sculpted_mesh(compiled):
-    if compiled and not sf.kernels.available():
+    if compiled and not sf.accel.available():
         pytest.skip("numba (the 'fast' extra) not installed")
     mesh = cube_sphere(9, mix=0.3, seed=8)
-    with sf.kernels.enabled(compiled):
+    with sf.accel.enabled(compiled):
         b = sf.Brush(mesh, lam=-60.0, radius=0.7)
         rng = np.random.default_rng(3)
         b.stroke(mesh.vertices[rng.choice(mesh.n_vertices, 5)], spacing=0.3)
@@ -323,7 +325,7 @@ def test_caches_follow_the_sculpted_mesh(compiled):
     assert np.array_equal(b.locked, locked)
 
 
-@pytest.mark.skipif(not sf.kernels.available(), reason="numba (the 'fast' extra) not installed")
+@pytest.mark.skipif(not sf.accel.available(), reason="numba (the 'fast' extra) not installed")
 def test_compiled_cache_update_matches_numpy():
     """Dabs next to a zero-length edge, an undo: locks, lock counts and weights agree on both paths."""
     mesh = _bumpy_grid(12)
@@ -332,7 +334,7 @@ def test_compiled_cache_update_matches_numpy():
     mesh = mesh.with_vertices(V)
     runs = []
     for compiled in (False, True):
-        with sf.kernels.enabled(compiled):
+        with sf.accel.enabled(compiled):
             b = sf.Brush(mesh, lam=-40.0, radius=2.5)
             b.dab(V[40])
             b.dab(V[60])
@@ -345,7 +347,7 @@ def test_compiled_cache_update_matches_numpy():
     assert np.abs(v0 - v1).max() <= 1e-12 * np.ptp(V)
 
 
-@pytest.mark.skipif(not sf.kernels.available(), reason="numba (the 'fast' extra) not installed")
+@pytest.mark.skipif(not sf.accel.available(), reason="numba (the 'fast' extra) not installed")
 @pytest.mark.parametrize("falloff", [None, "smooth"])
 def test_compiled_region_matches_numpy(falloff):
     """Rim, degrees and the assembled system (boundary neighbours solved first, weights,
@@ -355,7 +357,7 @@ def test_compiled_region_matches_numpy(falloff):
     centers = [[0.0, 5.0, 0.0], [10.0, 0.5, 0.0], [9.0, 9.0, 0.1]]
     runs = []
     for compiled in (False, True):
-        with sf.kernels.enabled(compiled):
+        with sf.accel.enabled(compiled):
             b = sf.Brush(mesh, lam=-30.0, radius=4.0, lam_border=-5.0, weights=w, falloff=falloff)
             dabs = [b.preview(c) for c in centers[:1]] + [None]
             b.commit()
@@ -370,19 +372,19 @@ def test_compiled_region_matches_numpy(falloff):
         assert np.array_equal(i0, i1) and np.array_equal(p0, p1) and np.array_equal(np.sort(r0), np.sort(r1))
 
 
-@pytest.mark.skipif(not sf.kernels.available(), reason="numba (the 'fast' extra) not installed")
+@pytest.mark.skipif(not sf.accel.available(), reason="numba (the 'fast' extra) not installed")
 def test_kernels_switched_off_on_a_live_brush():
     """A brush made with the compiled kernels keeps working (same dabs) when they are switched
     off and on again: the spatial index follows."""
     mesh = cube_sphere(8, mix=0.3, seed=4)
     c = mesh.vertices[[3, 40, 77]]
     ref = sf.Brush(mesh, lam=-20.0, radius=0.5)
-    with sf.kernels.enabled(False):
+    with sf.accel.enabled(False):
         for x in c:
             ref.dab(x)
     b = sf.Brush(mesh, lam=-20.0, radius=0.5)
     b.dab(c[0])
-    with sf.kernels.enabled(False):
+    with sf.accel.enabled(False):
         b.dab(c[1])
     b.dab(c[2])
     # the index follows the switch: built at construction (grid), rebuilt when the kernels go off
@@ -391,7 +393,7 @@ def test_kernels_switched_off_on_a_live_brush():
     assert np.abs(b.vertices - ref.vertices).max() <= 1e-12 * mesh.diagonal
 
 
-@pytest.mark.skipif(not sf.kernels.available(), reason="numba (the 'fast' extra) not installed")
+@pytest.mark.skipif(not sf.accel.available(), reason="numba (the 'fast' extra) not installed")
 def test_compiled_local_order_matches_scipy():
     """The compiled breadth-first searches of the local band ordering give scipy's order."""
     mesh = cube_sphere(6, mix=0.4, seed=2)
@@ -402,10 +404,12 @@ def test_compiled_local_order_matches_scipy():
     a, c = shuffle[np.concatenate([e[:, 0], e[:, 1]])], shuffle[np.concatenate([e[:, 1], e[:, 0]])]
     o = np.lexsort((rng.random(a.size), a))          # grouped by row, neighbours in a random order
     ri, ci = a[o], c[o]
+    from shapeflow.linalg.ordering import local_order
+
     perms = []
     for compiled in (False, True):
-        with sf.kernels.enabled(compiled):
-            perms.append(sf.Brush._local_rcm(k, ri, ci, grouped=True))
+        with sf.accel.enabled(compiled):
+            perms.append(local_order(k, ri, ci, grouped=True))
     assert np.array_equal(perms[0][0], perms[1][0]) and np.array_equal(perms[0][1], perms[1][1])
     assert np.array_equal(np.sort(perms[1][0]), np.arange(k))
     # the narrower of the two sweeps' Cuthill-McKee orders (u = last reached from 0, w = last from u)
@@ -483,11 +487,11 @@ def test_spatial_index_stays_exact_as_vertices_move():
     assert b._far_count > 0 or b.tree_rebuilds > 1
 
 
-@pytest.mark.skipif(not sf.kernels.available(), reason="numba (the 'fast' extra) not installed")
+@pytest.mark.skipif(not sf.accel.available(), reason="numba (the 'fast' extra) not installed")
 def test_cell_grid_query_is_exact():
     """The compiled grid finds exactly the points within r (moved points too), whatever the
     radius relative to the cell size, with centres inside and far outside the grid."""
-    from shapeflow.brush import _CellGrid
+    from shapeflow.sculpt.grid import CellGrid as _CellGrid
 
     rng = np.random.default_rng(9)
     P = rng.normal(size=(3000, 3)) * [1.0, 2.0, 0.3]
@@ -667,7 +671,8 @@ def test_unreferenced_vertices_and_meshes_without_faces():
 @pytest.mark.parametrize("band", [30, 56, 60, 64, 65, 80])
 def test_banded_solve_with_and_without_padding(band, monkeypatch):
     """Bands 56-64 go to LAPACK padded to 65 (its blocked code); the solution is the same system's."""
-    from shapeflow import brush as B
+    from shapeflow.linalg import banded as B
+    from shapeflow.linalg.local import LocalSolver
 
     rng = np.random.default_rng(band)
     k = 400
@@ -693,31 +698,32 @@ def test_banded_solve_with_and_without_padding(band, monkeypatch):
     expected = np.linalg.solve(A, rhs)
 
     seen = []
-    real = B.Brush._banded
-    monkeypatch.setattr(B.Brush, "_banded", lambda self, *a: seen.append(a[-1]) or real(self, *a))
-    brush = sf.Brush(grid(5, 5), radius=1.0, solver="banded")
-    X, used, bw = brush._solve_spd(k, R, C, Vv, diag, rhs)
+    real = B.banded_cholesky
+    monkeypatch.setattr(sys.modules["shapeflow.linalg.local"], "banded_cholesky",
+                        lambda *a: seen.append(a[-1]) or real(*a))
+    solver = LocalSolver("banded")
+    X, used, bw = solver.solve(k, R, C, Vv, diag, rhs)
     assert used == "banded" and bw == band                  # the report keeps the true band
     assert seen == [65 if 56 <= band <= 64 else band]
     np.testing.assert_allclose(X, expected, rtol=1e-10, atol=1e-12)
     # the band storage is reused: a second, smaller solve on the same brush (stale values in
     # the buffer must not leak into it) and the first one again
     half = (R < k // 2) & (C < k // 2)
-    X2, _, _ = brush._solve_spd(k // 2, R[half], C[half], Vv[half], diag[:k // 2], rhs[:k // 2])
+    X2, _, _ = solver.solve(k // 2, R[half], C[half], Vv[half], diag[:k // 2], rhs[:k // 2])
     A2 = np.zeros((k // 2, k // 2))
     A2[R[half], C[half]] = Vv[half]
     A2[np.arange(k // 2), np.arange(k // 2)] = diag[:k // 2]
     np.testing.assert_allclose(X2, np.linalg.solve(A2, rhs[:k // 2]), rtol=1e-10, atol=1e-12)
-    X3, _, _ = brush._solve_spd(k, R, C, Vv, diag, rhs)
+    X3, _, _ = solver.solve(k, R, C, Vv, diag, rhs)
     np.testing.assert_array_equal(X3, X)
 
 
 # --- the split solver: two banded halves on two threads, a dense separator ------------------
 
 def _split_ready():
-    from shapeflow import brush as B
+    from shapeflow.linalg.blas import split_routines
 
-    return sf.kernels.available() and B._split_routines() is not None
+    return sf.accel.available() and split_routines() is not None
 
 
 requires_split = pytest.mark.skipif(not _split_ready(), reason="needs numba and SciPy's OpenBLAS LAPACK pointers")
@@ -754,17 +760,17 @@ def _grid_system(w, h, seed, eight=True, shuffle=True):
 @requires_split
 @pytest.mark.parametrize("w, h, eight", [(40, 30, True), (36, 36, False), (60, 25, True), (70, 40, True)])
 def test_split_solve_matches_a_dense_solve(w, h, eight, monkeypatch):
-    from shapeflow import brush as B
-    from shapeflow import kernels
+    from shapeflow.linalg import banded as B
+    from shapeflow.linalg import compiled_split as K
+    from shapeflow.linalg.local import LocalSolver
 
-    K = kernels.get(10**9)
     k, R, C, V, diag, rhs, A = _grid_system(w, h, seed=w * h, eight=eight)
     seen = []
     real = K.split_solve
     # record perm and dims of every call
     monkeypatch.setattr(K, "split_solve", lambda *a: seen.append((a[-5].copy(), a[-3].copy())) or real(*a))
-    brush = sf.Brush(grid(5, 5), radius=1.0)
-    X, used, bw = brush._solve_spd(k, R, C, V, diag, rhs)
+    solver = LocalSolver("auto")
+    X, used, bw = solver.solve(k, R, C, V, diag, rhs)
     assert used == "split"
     np.testing.assert_allclose(X, np.linalg.solve(A, rhs), rtol=1e-9, atol=1e-11)
     # the order, checked from its definition
@@ -792,15 +798,17 @@ def test_split_solve_matches_a_dense_solve(w, h, eight, monkeypatch):
 def test_split_solver_falls_back_where_it_does_not_apply():
     import numba
 
+    from shapeflow.linalg.local import LocalSolver
+
     k, R, C, V, diag, rhs, A = _grid_system(40, 30, seed=5)
-    brush = sf.Brush(grid(5, 5), radius=1.0)
+    solver = LocalSolver("auto")
     ref = np.linalg.solve(A, rhs)
     # components: the largest is split, the others join the smaller half
     kk, Rk, Ck, Vk, dk, rk, Ak = _grid_system(12, 9, seed=8)
     R2, C2 = np.concatenate([R, Rk + k]), np.concatenate([C, Ck + k])
     V2, d2 = np.concatenate([V, Vk]), np.concatenate([diag, dk, [2.0]])   # + an isolated unknown
     rhs2 = np.vstack([rhs, rk, [[1.0, -2.0, 4.0]]])
-    X, used, _ = brush._solve_spd(k + kk + 1, R2, C2, V2, d2, rhs2)
+    X, used, _ = solver.solve(k + kk + 1, R2, C2, V2, d2, rhs2)
     assert used == "split"
     np.testing.assert_allclose(X, np.vstack([ref, np.linalg.solve(Ak, rk), [[0.5, -1.0, 2.0]]]),
                                rtol=1e-9, atol=1e-11)
@@ -815,7 +823,7 @@ def test_split_solver_falls_back_where_it_does_not_apply():
     ds[0] = ks + 1.0
     As = np.diag(ds)
     As[Rs, Cs] = Vs
-    X, used, _ = brush._solve_spd(ks, Rs, Cs, Vs, ds, rhs[:ks])
+    X, used, _ = solver.solve(ks, Rs, Cs, Vs, ds, rhs[:ks])
     assert used != "split"
     np.testing.assert_allclose(X, np.linalg.solve(As, rhs[:ks]), rtol=1e-9, atol=1e-11)
     # not positive definite: LU takes over, the answer is still the system's
@@ -823,22 +831,22 @@ def test_split_solver_falls_back_where_it_does_not_apply():
     bad[::7] = -5.0
     A_bad = A.copy()
     A_bad[np.arange(k), np.arange(k)] = bad
-    X, used, _ = brush._solve_spd(k, R, C, V, bad, rhs)
+    X, used, _ = solver.solve(k, R, C, V, bad, rhs)
     assert used in ("lu", "cholesky")
     np.testing.assert_allclose(A_bad @ X, rhs, rtol=1e-8, atol=1e-8)
     # one thread: the one-band path
     old = numba.get_num_threads()
     numba.set_num_threads(1)
     try:
-        X, used, _ = brush._solve_spd(k, R, C, V, diag, rhs)
+        X, used, _ = solver.solve(k, R, C, V, diag, rhs)
     finally:
         numba.set_num_threads(old)
     assert used == "banded"
     np.testing.assert_allclose(X, ref, rtol=1e-9, atol=1e-11)
     # an explicit solver="banded" never splits; small systems do not either
-    assert sf.Brush(grid(5, 5), radius=1.0, solver="banded")._solve_spd(k, R, C, V, diag, rhs)[1] == "banded"
+    assert LocalSolver("banded").solve(k, R, C, V, diag, rhs)[1] == "banded"
     ks, Rs, Cs, Vs, ds, rs, As = _grid_system(20, 20, seed=6)
-    assert brush._solve_spd(ks, Rs, Cs, Vs, ds, rs)[1] == "banded"
+    assert solver.solve(ks, Rs, Cs, Vs, ds, rs)[1] == "banded"
 
 
 @requires_split
@@ -859,12 +867,13 @@ def test_split_dabs_equal_one_band_dabs():
 
 
 def test_a_fallback_from_the_split_solver_is_reported(monkeypatch):
-    import shapeflow.brush as B
+    import shapeflow.linalg.local as B
+    from shapeflow.linalg.blas import FALLBACKS
 
-    if not sf.kernels.available():
+    if not sf.accel.available():
         pytest.skip("the split solver needs numba (the 'fast' extra)")
-    monkeypatch.setattr(B, "_split_routines", lambda: None)   # as on a SciPy without OpenBLAS's setter
-    monkeypatch.setitem(B.FALLBACKS, "split", "the split solver is unavailable here")
+    monkeypatch.setattr(B, "split_routines", lambda: None)   # as on a SciPy without OpenBLAS's setter
+    monkeypatch.setitem(FALLBACKS, "split", "the split solver is unavailable here")
     mesh = sf.load_example("spot")
     brush = sf.Brush(mesh, lam=-20.0, radius=0.9)
     brush.dab(mesh.vertices.mean(axis=0))

@@ -13,7 +13,8 @@ from shapeflow.cli import main
 from conftest import MESHES, requires_shared
 from meshgen import cube_sphere, grid
 
-fam = importlib.import_module("shapeflow.families")
+paths = importlib.import_module("shapeflow.flow.family_paths")
+from shapeflow.linalg.multishift import multishift_cg  # noqa: E402
 
 #: mixed signs, zeros, a repeated λ and a ±λ pair (one shift for both)
 LAMS = [0.0, -5.0, 5.0, -50.0, -120.0, 30.0, 0.0, -235.0, -5.0]
@@ -184,7 +185,7 @@ def test_area_normalized_needs_direct_solves():
 def test_hard_members_split_off(monkeypatch):
     """Members beyond the CG budget go to separate solves, the others stay shared."""
     c = cube_sphere(6, seed=4)
-    monkeypatch.setattr(fam, "HOPELESS", 0.2)   # budget ~ 0.2 x 240 iterations: |λ| up to ~10
+    monkeypatch.setattr(paths, "SHARED_CG_MAX_RATIO", 0.2)   # budget ~ 0.2 x 240 iterations: |λ| up to ~10
     report, _ = _agree(c, [-2.0, -5.0, -200.0, 0.0, 300.0])
     assert report.path == "multishift"
     assert report.fallback_members == [2, 4] and report.shifts == 2
@@ -193,8 +194,8 @@ def test_hard_members_split_off(monkeypatch):
 
 def test_unconverged_members_are_redone(monkeypatch):
     c = cube_sphere(6, seed=5)
-    real = fam.multishift_cg
-    monkeypatch.setattr(fam, "multishift_cg", lambda *a, **kw: real(*a, **{**kw, "maxiter": 15}))
+    real = multishift_cg
+    monkeypatch.setattr(paths, "multishift_cg", lambda *a, **kw: real(*a, **{**kw, "maxiter": 15}))
     report, _ = _agree(c, [-1.0, -150.0, -400.0])
     assert report.path == "multishift"
     assert report.fallback_members == [1, 2]
@@ -256,7 +257,7 @@ def test_family_meshes_and_progress():
 
 
 def test_family_is_callable_whatever_was_imported_first():
-    import shapeflow.families  # noqa: F401  (binds the package attribute ``families``, not ``family``)
+    import shapeflow.flow.family  # noqa: F401  (binds ``shapeflow.flow.family`` to the module, not ``sf.family``)
     import shapeflow.rendering  # noqa: F401
 
     assert callable(sf.render) and callable(sf.render_meshes)
@@ -286,7 +287,7 @@ def test_multishift_cg_against_dense(block_bytes):
     B[1] = 0.0                                     # a zero column: converged from the start
     shifts = np.array([0.5, 0.05, 0.01, 0.1, 0.01, 1.0, 0.03])   # condition numbers up to ~400
     seen = []
-    res = fam.multishift_cg(A, B, shifts, rtol=1e-12, maxiter=3000, block_bytes=block_bytes,
+    res = multishift_cg(A, B, shifts, rtol=1e-12, maxiter=3000, block_bytes=block_bytes,
                             progress=lambda d: seen.append(d.copy()))
     assert res.converged.all()
     assert (res.flushes > 1) == (block_bytes < 10 ** 9)
@@ -307,7 +308,7 @@ def test_multishift_cg_residuals_meet_rtol():
     A = (Q @ Q.T + sp.eye(n) * 0.5).tocsr()
     B = rng.standard_normal((2, n))
     shifts = np.array([0.0, 0.3, 3.0])
-    res = fam.multishift_cg(A, B, shifts, rtol=1e-9)
+    res = multishift_cg(A, B, shifts, rtol=1e-9)
     assert res.converged.all()
     for i, s in enumerate(shifts):
         for j in range(2):
@@ -320,7 +321,7 @@ def test_multishift_cg_reports_what_did_not_converge():
     Q = sp.random(n, n, density=0.05, random_state=2)
     A = (Q @ Q.T + sp.eye(n) * 1e-3).tocsr()      # condition number ~3e4: needs more than 40 iterations
     B = np.random.default_rng(1).standard_normal((2, n))
-    res = fam.multishift_cg(A, B, [0.0, 3.0], rtol=1e-9, maxiter=40)
+    res = multishift_cg(A, B, [0.0, 3.0], rtol=1e-9, maxiter=40)
     assert res.krylov_iterations == 40
     assert not res.converged[0].any() and (res.iterations[0] == -1).all()
     assert res.converged[1].all() and (res.iterations[1] > 0).all()

@@ -658,7 +658,7 @@ def test_failed_rename_leaves_no_temp_file(tmp_path, monkeypatch):
     def boom(src, dst):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(sio.os, "replace", boom)
+    monkeypatch.setattr(__import__("shapeflow.io.atomic").io.atomic.os, "replace", boom)
     with pytest.raises(OSError):
         sio.save(tmp_path / "out.ply", _mixed_mesh())
     assert os.listdir(tmp_path) == []

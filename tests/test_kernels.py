@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 import shapeflow as sf
-from shapeflow import kernels
-from shapeflow.operators import _assemble, _Structure
+from shapeflow import accel as kernels
+from shapeflow.operators.weights import assemble as _assemble
+from shapeflow.operators.pattern import OperatorPattern as _Structure
 
 from conftest import shared_mesh_paths
 import meshgen
@@ -21,9 +22,10 @@ pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba (the 'fas
 
 
 @pytest.fixture
-def forced(monkeypatch):
+def forced():
     """Kernels for every size inside the test."""
-    monkeypatch.setattr(kernels, "MIN_SIZE", 0)
+    with kernels.use(min_size=0):
+        yield
 
 
 def _degenerate_grid() -> sf.Mesh:
@@ -143,15 +145,11 @@ def test_validation_same_verdict_and_message():
     for name, S, I in cases:
         with kernels.enabled(False):
             slow = verdict(S, I)
-        old = kernels.MIN_SIZE
-        kernels.MIN_SIZE = 0
-        try:
+        with kernels.use(min_size=0):
             fast = verdict(S, I)
-        finally:
-            kernels.MIN_SIZE = old
         assert (slow is None) == (name == "valid"), name
         assert fast == slow, name
-    from shapeflow import _numba_kernels as NK
+    from shapeflow.mesh import compiled as NK
     for name, S, I in cases:
         offsets = np.concatenate([[0], np.cumsum(S)])
         f = NK.first_bad_face(I.astype(np.int64), offsets, V.shape[0])
@@ -182,7 +180,7 @@ def test_interior_system_identical(name, mesh, forced):
     out = []
     for on in (True, False):
         with kernels.enabled(on):
-            isys = fs._interior_system(op, -4.0, 1, [])
+            isys = fs.systems.interior(op, -4.0, 1, [])
             out.append((isys.A.toarray(), isys.solver._minv, isys.coupling, isys.c))
     (A1, m1, c1, d1), (A0, m0, c0, d0) = out
     assert np.array_equal(A1, A0) and np.array_equal(m1, m0) and np.array_equal(d1, d0)
@@ -220,7 +218,7 @@ def test_permuted_pattern_is_the_permuted_matrix(forced):
     # the expansion's products in the permuted order: same result as without
     m = sf.Mesh.from_csr(mesh.vertices, mesh.face_sizes, mesh.face_indices)
     a = sf.flow(m, 2.0, iterations=6, solver="chebyshev")
-    st2 = sf.operators._structure(m, "tqlbo")
+    st2 = sf.operators.operator_pattern(m, "tqlbo")
     assert st2._locality is not None                     # the permuted path ran
     st2._locality = None
     real = st2.locality
@@ -234,7 +232,7 @@ def test_permuted_pattern_is_the_permuted_matrix(forced):
 
 def test_cg_kernel_columns(forced):
     """1, 2 and 3 columns; zero columns stay zero; same answer as the NumPy CG."""
-    from shapeflow.solvers import SPDSolver
+    from shapeflow.linalg import SPDSolver
 
     m = meshgen.cube_sphere(8)
     W = sf.cotan_weights(m).W
@@ -261,10 +259,11 @@ def test_cg_kernel_columns(forced):
 
 
 def test_small_meshes_do_not_use_kernels():
-    if kernels._state["force"]:   # SHAPEFLOW_KERNELS=force: every size by definition
-        assert kernels.get(1) is not None
+    size = kernels.current().min_size
+    if kernels.current().kernels == "force":   # SHAPEFLOW_KERNELS=force: every size by definition
+        assert kernels.compiled("mesh", 1) is not None
     else:
-        assert kernels.get(kernels.MIN_SIZE - 1) is None
-    assert kernels.get(kernels.MIN_SIZE) is not None
+        assert kernels.compiled("mesh", size - 1) is None
+    assert kernels.compiled("mesh", size) is not None
     with kernels.enabled(False):
-        assert kernels.get(10**9) is None
+        assert kernels.compiled("mesh", 10**9) is None

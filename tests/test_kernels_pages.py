@@ -1,4 +1,5 @@
-"""``kernels.small_pages``: NumPy's huge-page hint is off inside shapeflow's heavy calls, and restored.
+"""``accel.small_pages``: with ``small_pages=True`` (opt-in) NumPy's huge-page hint is off inside
+shapeflow's heavy calls, and restored; by default shapeflow leaves it alone.
 
 Independent of numba (the switch is NumPy's), so not skipped with the kernels.
 """
@@ -10,11 +11,11 @@ import threading
 import pytest
 
 import shapeflow as sf
-from shapeflow import kernels
+from shapeflow import accel as kernels
 
 import meshgen
 
-setter = kernels._madvise_setter()
+setter = kernels.madvise_setter()
 pytestmark = pytest.mark.skipif(setter is None, reason="this NumPy has no huge-page switch")
 
 
@@ -28,8 +29,17 @@ def hint() -> bool:
 @pytest.fixture(autouse=True)
 def numpy_default():
     old = setter(True)
-    yield
+    with kernels.use(small_pages=True):      # the opt-in; threads started below see the default
+        yield
     setter(old)
+
+
+def test_by_default_the_hint_is_left_alone():
+    m = meshgen.grid(6, 5, z=lambda x, y: 0.2 * x * y)
+    seen = []
+    with kernels.use(small_pages=False):
+        sf.flow(m, 0.5, iterations=2, progress=lambda i, n: seen.append(hint()))
+    assert seen == [True, True]
 
 
 def test_off_inside_restored_after():
@@ -65,14 +75,14 @@ def test_interleaved_threads_restore_the_setting():
     during = []
 
     def a():
-        with kernels.small_pages():
+        with kernels.use(small_pages=True), kernels.small_pages():
             a_in.set()
             b_in.wait(5)
         a_out.set()
 
     def b():
         a_in.wait(5)
-        with kernels.small_pages():
+        with kernels.use(small_pages=True), kernels.small_pages():
             b_in.set()
             a_out.wait(5)
             during.append(hint())
@@ -86,7 +96,14 @@ def test_interleaved_threads_restore_the_setting():
     assert hint() is True
 
 
-def test_environment_switch_keeps_numpy_default(monkeypatch):
-    monkeypatch.setitem(kernels._pages, "keep_huge", True)
-    with kernels.small_pages():
-        assert hint() is True
+def test_the_setting_is_per_thread():
+    """``use(small_pages=True)`` in one thread does not reach another thread's calls."""
+    seen = []
+    old = kernels.set_default(small_pages=False)
+    try:
+        t = threading.Thread(target=lambda: seen.append(kernels.current().small_pages))
+        t.start()
+        t.join(10)
+    finally:
+        kernels.set_default(old)
+    assert kernels.current().small_pages is True and seen == [False]

@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 import shapeflow as sf
-from shapeflow import kernels
+from shapeflow import accel as kernels
 from shapeflow.errors import MeshError
-from shapeflow.operators import FAN_TRIANGLES_MAX, _fan_interior_triangles
+from shapeflow.operators.pattern import FAN_TRIANGLES_MAX
+from shapeflow.operators.pattern import fan_interior_triangles as _fan_interior_triangles
 
 
 def ring(k: int, apex: bool = True):
@@ -56,7 +57,7 @@ def test_validation_of_large_faces(k, use_kernels):
             with pytest.raises(MeshError, match="face 0"):
                 sf.Mesh.from_csr(V, fs, bad)
     if use_kernels:   # the compiled pass itself, at any size
-        K = kernels._load()
+        from shapeflow.mesh import compiled as K
         offs = np.array([0, k], dtype=np.int64)
         assert K.first_bad_face(fi, offs, V.shape[0]) == -1
         bad = fi.copy()

@@ -13,6 +13,7 @@ import pytest
 
 import shapeflow as sf
 from shapeflow import io as sio
+from shapeflow.io import atomic
 from shapeflow.errors import OutputError
 
 
@@ -122,7 +123,7 @@ def test_write_error_names_the_users_path(tmp_path, monkeypatch):
     def boom(src, dst):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(sio.os, "replace", boom)
+    monkeypatch.setattr(atomic.os, "replace", boom)
     with pytest.raises(OutputError, match=r"out\.ply: cannot write: No space left on device") as info:
         sio.save(tmp_path / "out.ply", tri())
     assert ".tmp" not in str(info.value) and isinstance(info.value, OSError)
@@ -136,7 +137,8 @@ CHILD = textwrap.dedent("""
     import shapeflow.io as sio
     from shapeflow.cli import main
     if {named}:
-        sio._unnamed_file = lambda d: None          # the named-temporary-file path
+        import shapeflow.io.atomic as atomic
+        atomic.unnamed_file = lambda d: None          # the named-temporary-file path
     def slow(f, mesh, **kw):
         f.write(b"x" * 100000)
         f.flush()

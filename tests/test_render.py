@@ -12,6 +12,7 @@ import pytest
 
 import shapeflow as sf
 from shapeflow import rendering as R
+from shapeflow.rendering import api as RA, backend as RB, fields as RF, scene as RS
 from shapeflow.cli import main
 from shapeflow.errors import OptionalDependencyError, ParameterError
 
@@ -206,7 +207,7 @@ def test_displacement_weights_and_arrays():
 @needs_render
 def test_open_mesh_boundary_curvature_is_neutral():
     m = grid(8, 8, z=lambda x, y: 0.05 * (x - 3.5) ** 2)
-    f = R._field(m, "curvature", None)
+    f = RF.color_field(m, "curvature", None)
     bnd = m.topology.boundary_vertex_mask
     assert np.isnan(f.values[bnd]).all() and np.isfinite(f.values[~bnd]).all()
     img = R.render(m, None, color="curvature", view="front", size=(160, 160))
@@ -219,21 +220,21 @@ def test_open_mesh_boundary_curvature_is_neutral():
 def test_bad_parameters_raise_parameter_error():
     m = cube_sphere(3)
     with pytest.raises(ParameterError, match="reference"):
-        R._field(m, "displacement", None)
+        RF.color_field(m, "displacement", None)
     with pytest.raises(ParameterError, match="weight"):
-        R._field(m, "weights", None)
+        RF.color_field(m, "weights", None)
     with pytest.raises(ParameterError, match="unknown color"):
-        R._field(m, "no-such-field", None)
+        RF.color_field(m, "no-such-field", None)
     with pytest.raises(ParameterError, match="values"):
-        R._field(m, np.zeros(m.n_vertices + 1), None)
+        RF.color_field(m, np.zeros(m.n_vertices + 1), None)
     with pytest.raises(ParameterError, match="view"):
-        R._view_angles("sideways")
+        RS.view_angles("sideways")
     with pytest.raises(ParameterError, match="elevation"):
-        R._view_angles((0, 120))
+        RS.view_angles((0, 120))
     with pytest.raises(ParameterError, match="size"):
-        R._check_size((4, 4000))
+        RA.check_size((4, 4000))
     with pytest.raises(ParameterError, match="grid"):
-        R._grid((1, 1), 3)
+        RA.grid_shape((1, 1), 3)
 
 
 def test_missing_vtk_raises_optional_dependency_error(monkeypatch):
@@ -241,20 +242,20 @@ def test_missing_vtk_raises_optional_dependency_error(monkeypatch):
 
     monkeypatch.setitem(sys.modules, "vtkmodules.vtkRenderingOpenGL2", None)
     with pytest.raises(OptionalDependencyError, match=r"shapeflow\[render\]"):
-        R._vtk()
+        RB.vtk_classes()
 
 
 def test_no_offscreen_opengl_is_a_clear_error(monkeypatch):
-    monkeypatch.setattr(R, "_BACKEND_CHECKED", False)
-    monkeypatch.setattr(R, "_egl_works", lambda: False)
-    monkeypatch.setattr(R, "_osmesa_present", lambda: False)
-    monkeypatch.setattr(R.sys, "platform", "linux")
+    monkeypatch.setattr(RB, "_BACKEND_CHECKED", False)
+    monkeypatch.setattr(RB, "egl_works", lambda: False)
+    monkeypatch.setattr(RB, "osmesa_present", lambda: False)
+    monkeypatch.setattr(RB.sys, "platform", "linux")
     monkeypatch.delenv("VTK_DEFAULT_OPENGL_WINDOW", raising=False)
     monkeypatch.delenv("DISPLAY", raising=False)
     with pytest.raises(R.RenderBackendError, match="EGL"):
-        R._choose_backend()
+        RB.choose_backend()
     with pytest.raises(OptionalDependencyError):        # the CLI turns it into exit code 2
-        R._choose_backend()
+        RB.choose_backend()
 
 
 # --------------------------------------------------------------------------

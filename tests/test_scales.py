@@ -88,15 +88,16 @@ def test_enhancement_beyond_double_precision_is_refused(spot):
 
 
 def test_report_says_when_a_rebuilt_operator_leaves_nothing_free(spot, monkeypatch):
-    flow_mod = __import__("sys").modules["shapeflow.flow"]
-    real = flow_mod.FlowSolver._interior_system
+    from shapeflow.flow.system import SystemBuilder
+
+    real = SystemBuilder.interior
     calls = []
 
     def second_time_nothing_free(self, *a, **k):
         calls.append(1)
         return real(self, *a, **k) if len(calls) == 1 else None
 
-    monkeypatch.setattr(flow_mod.FlowSolver, "_interior_system", second_time_nothing_free)
+    monkeypatch.setattr(SystemBuilder, "interior", second_time_nothing_free)
     out = sf.flow(spot, -5.0, iterations=4, update="recompute")
     assert out.report.steps == 1 and out.report.max_displacement > 0
     assert any("stopped after 1 of 4 steps" in n for n in out.report.notes)

@@ -14,7 +14,7 @@ import pytest
 import scipy.linalg as sla
 
 import shapeflow as sf
-from shapeflow import solvers
+from shapeflow import linalg as solvers
 
 CASES = [(5.0, 10), (-100.0, 10), (1e4, 100), (-1e6, 2), (-30.0, 1), (1e3, 3)]
 PATHS = ["auto", "cg", "chebyshev", "lu"] + (["cholesky"] if solvers.cholesky_available() else [])
@@ -73,7 +73,7 @@ def test_unresolved_chebyshev_series_has_no_bound():
 @pytest.mark.parametrize("overwrite", [False, True])
 def test_cg_short_of_rtol_falls_back_to_lu(spot, overwrite):
     fs = sf.FlowSolver(spot)
-    isys = fs._interior_system(fs.operator(), -1e5, 1, [])
+    isys = fs.systems.interior(fs.operator(), -1e5, 1, [])
     A = isys.A.tocsr()
     rng = np.random.default_rng(0)
     B = rng.standard_normal((A.shape[0], 3))
@@ -85,7 +85,7 @@ def test_cg_short_of_rtol_falls_back_to_lu(spot, overwrite):
 
 
 def test_flow_reports_the_fallback(spot, reference, monkeypatch):
-    monkeypatch.setattr(solvers, "cg_maxiter", lambda n: 4)
+    monkeypatch.setattr(solvers.spd, "cg_maxiter", lambda n: 4)
     out = sf.flow(spot, -30.0, iterations=1, solver="cg")
     assert out.report.solver == "lu"
     assert any("did not reach rtol" in n for n in out.report.notes)

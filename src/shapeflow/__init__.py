@@ -28,9 +28,9 @@ _LAZY = {
     "load": "io", "save": "io", "load_weights": "io", "save_weights": "io",
     "load_example": "examples", "example_path": "examples",
     "subdivide": "subdivision", "subdivision_matrix": "subdivision",
-    "family": "families", "family_meshes": "families",
+    "family": "flow", "family_meshes": "flow",
     "render": "rendering", "render_meshes": "rendering",
-    "Brush": "brush", "InflateBrush": "brush",
+    "Brush": "sculpt", "InflateBrush": "sculpt",
 }
 
 

@@ -10,10 +10,12 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
+import os
 import signal
 import sys
 import threading
 
+from .. import accel
 from ..errors import OptionalDependencyError, ShapeflowError
 
 #: subcommand modules, in the order ``--help`` lists them
@@ -88,7 +90,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help(sys.stderr)
         return 2
     try:
-        with _termination_unwinds():
+        # the command is its own application: it takes the measured small-page win (accel docs) unless
+        # SHAPEFLOW_SMALL_PAGES=0, for this call only (an embedding program's setting is back afterwards)
+        pages = os.environ.get("SHAPEFLOW_SMALL_PAGES", "1").strip().lower() in ("1", "true", "yes", "on")
+        with _termination_unwinds(), accel.use(small_pages=pages):
             return int(args.func(args) or 0)
     except Terminated as exc:
         print(f"shapeflow {args.command}: terminated by {signal.Signals(exc.signum).name}; "
@@ -96,8 +101,6 @@ def main(argv: list[str] | None = None) -> int:
         return 128 + exc.signum
     except BrokenPipeError:
         # the reader of our output went away (e.g. `shapeflow info x | head`): not an error to report
-        import os
-
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 141

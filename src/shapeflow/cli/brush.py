@@ -133,7 +133,7 @@ def read_stroke(path: str) -> dict:
 
 
 def run(args) -> int:
-    from ..brush import Brush, InflateBrush
+    from ..sculpt import Brush, InflateBrush
     from .flow import weights_arg
 
     stroke = read_stroke(args.stroke)

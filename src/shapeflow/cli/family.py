@@ -147,7 +147,7 @@ def _stem(args) -> str:
 
 
 def run(args) -> int:
-    from ..families import family
+    from ..flow.family import family
 
     t0 = time.perf_counter()
     lams = lams_from_args(args)

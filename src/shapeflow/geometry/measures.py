@@ -1,4 +1,4 @@
-"""Per-element geometry: triangle cotangents and areas, polygon areas, volume.
+"""Per-element measures: polygon vector areas, enclosed volume, mean edge length, and exact rescaling.
 
 Pure, vectorised functions of positions and index arrays; no sparse assembly
 here (that lives in :mod:`shapeflow.operators`).
@@ -8,14 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = [
-    "triangle_cotangents",
-    "face_vector_areas",
-    "signed_volume",
-    "vertex_normals",
-    "mean_edge_length",
-]
-
+__all__ = ["SCALE_LO", "SCALE_HI", "pow2_exponent", "face_vector_areas", "signed_volume", "mean_edge_length"]
 
 #: Coordinates whose largest magnitude lies outside [SCALE_LO, SCALE_HI] are computed on a copy
 #: scaled by a power of two (exact in binary floating point), so that no square, cross product or
@@ -29,48 +22,6 @@ def pow2_exponent(V: np.ndarray) -> int:
     if m == 0.0 or SCALE_LO <= m <= SCALE_HI:
         return 0
     return int(np.frexp(m)[1])
-
-
-
-def triangle_cotangents(vertices: np.ndarray, tris: np.ndarray):
-    """Cotangents of the three angles of each triangle, and twice its area.
-
-    Parameters
-    ----------
-    vertices : (n, 3) float64
-    tris : (T, 3) int vertex indices
-
-    Returns
-    -------
-    cot : (T, 3) float64
-        ``cot[t, k]`` is the cotangent of the angle at corner ``k`` of
-        triangle ``t`` (opposite the pair of the other two corners).  Rows of
-        triangles with zero area are 0 (never inf or NaN).
-    dbl_area : (T,) float64
-        ``|e1 × e2|`` = twice the triangle area.
-    sq_len : (T, 3) float64
-        Squared length of the edge opposite each corner.
-    """
-    p0 = vertices[tris[:, 0]]
-    p1 = vertices[tris[:, 1]]
-    p2 = vertices[tris[:, 2]]
-    e0 = p2 - p1  # opposite corner 0
-    e1 = p0 - p2  # opposite corner 1
-    e2 = p1 - p0  # opposite corner 2
-    cr = np.cross(e2, -e1)
-    dbl = np.sqrt(np.einsum("ij,ij->i", cr, cr))
-    dots = np.empty((tris.shape[0], 3))
-    dots[:, 0] = -np.einsum("ij,ij->i", e1, e2)
-    dots[:, 1] = -np.einsum("ij,ij->i", e2, e0)
-    dots[:, 2] = -np.einsum("ij,ij->i", e0, e1)
-    sq = np.empty((tris.shape[0], 3))
-    sq[:, 0] = np.einsum("ij,ij->i", e0, e0)
-    sq[:, 1] = np.einsum("ij,ij->i", e1, e1)
-    sq[:, 2] = np.einsum("ij,ij->i", e2, e2)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cot = dots / dbl[:, None]
-    cot[~(dbl > 0)] = 0.0
-    return cot, dbl, sq
 
 
 def face_vector_areas(mesh, vertices: np.ndarray | None = None) -> np.ndarray:
@@ -131,24 +82,6 @@ def signed_volume(mesh, vertices: np.ndarray | None = None, center: np.ndarray |
     return float(np.einsum("ij,ij->", a, np.cross(b, d)) / 6.0)
 
 
-def vertex_normals(mesh, vertices: np.ndarray | None = None) -> np.ndarray:
-    """Unit area-weighted vertex normals ((0,0,0) where undefined)."""
-    t = mesh.topology
-    v = mesh.vertices if vertices is None else vertices
-    k = pow2_exponent(v)
-    if k:   # normals are scale-free: an exact power-of-two copy keeps the areas in range
-        v = np.ldexp(v, -k)
-    fa = face_vector_areas(mesh, v)
-    n = v.shape[0]
-    nrm = np.empty((n, 3))
-    for k in range(3):
-        nrm[:, k] = np.bincount(t.face_indices, np.repeat(fa[:, k], t.face_sizes), minlength=n)
-    ln = np.sqrt(np.einsum("ij,ij->i", nrm, nrm))
-    ok = ln > 0
-    nrm[ok] /= ln[ok, None]
-    return nrm
-
-
 def mean_edge_length(mesh, vertices: np.ndarray | None = None) -> float:
     """Mean length of the unique edges (0 for a mesh without faces)."""
     e = mesh.topology.edges
@@ -156,23 +89,3 @@ def mean_edge_length(mesh, vertices: np.ndarray | None = None) -> float:
         return 0.0
     v = mesh.vertices if vertices is None else vertices
     return float(np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1).mean())
-
-
-#: Vertex attributes that hold the surface normal (PLY's convention).  They are recomputed from
-#: the surface whenever shapeflow moves the vertices, never carried over stale.
-NORMAL_ATTRIBUTES = ("nx", "ny", "nz")
-
-
-def refresh_normals(mesh):
-    """``mesh`` with its normal attributes (nx, ny, nz), if it has them, recomputed from its positions.
-
-    Unit area-weighted vertex normals (:func:`vertex_normals`), each attribute
-    in its own type.  Returns the mesh unchanged when it has none of them.
-    """
-    have = [k for k in NORMAL_ATTRIBUTES if k in mesh.attributes]
-    if not have:
-        return mesh
-    nrm = vertex_normals(mesh)
-    return mesh.with_attributes(**{k: nrm[:, NORMAL_ATTRIBUTES.index(k)].astype(mesh.attributes[k].dtype)
-                                   for k in have})
-

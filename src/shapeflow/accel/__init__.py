@@ -1,0 +1,252 @@
+"""The acceleration backend: which compiled kernels run, from what size, and the memory-page policy.
+
+One :class:`Backend` object holds every acceleration setting.  The one in
+force is read with :func:`current`; :func:`use` changes it for a ``with``
+block in the calling thread only (a :mod:`contextvars` variable, so other
+threads and the caller's state are untouched); :func:`set_default` changes
+the process default explicitly.  Nothing else in shapeflow changes
+process-wide state.
+
+Settings
+--------
+``kernels``
+    ``"auto"`` (default): the compiled twins (the ``fast`` extra: numba) run
+    on problems of at least ``min_size`` vertices or unknowns when numba is
+    installed; ``"off"``: NumPy/SciPy only; ``"force"``: compiled at every
+    size (the test suite runs that way in CI, so the compiled paths are
+    checked on small meshes too).  Every compiled kernel has a NumPy/SciPy
+    twin computing the same formulas in the same order (the compiled CG's
+    parallel sums differ only in rounding); the choice depends only on the
+    size, so a given mesh always takes the same path.  Small meshes never pay
+    numba's import (~0.5 s on first use in a process; compiled code is cached
+    on disk after the first run).
+``min_size``
+    Smallest problem for the compiled kernels under ``"auto"`` (50,000).
+``small_pages``
+    Opt-in (default False).  NumPy asks Linux for transparent huge pages on
+    every array of 4 MB or more.  On the virtual machines shapeflow is
+    measured on, a huge-page fault costs more than the 512 small faults it
+    replaces (the 2 MB come zeroed from memory the host has not backed yet):
+    a fresh flow on 937K vertices spent ~1.0 s in the kernel with huge pages
+    and ~0.4 s without (docs/performance.md).  With ``small_pages=True``
+    shapeflow's heavy entry points switch NumPy's hint off while they run
+    and restore it afterwards.  The hint is NumPy's process-wide setting, so
+    while such a call runs, other threads of the process allocate without it
+    too; that is why it is opt-in for the library.  The ``shapeflow``
+    command turns it on for its own process.
+
+Compiled kernels
+----------------
+Each package with hot loops has a ``compiled`` module beside its NumPy code
+(``shapeflow.mesh.compiled``, ``geometry``, ``operators``, ``linalg``,
+``flow``, ``sculpt``), loaded only through :func:`compiled`.  Kernels are
+compiled on first use and cached on disk (``cache=True``).  Large arrays are
+allocated by NumPy in the plain-Python wrappers (:func:`zeros`) and filled by
+the compiled functions.  Indices read from arrays are cast to ``np.uint64``
+before they index another array: numba tests every signed index for a
+negative value, and these gathers are the inner loops (measured: CSR product
+~15% faster, corner assembly ~25%).  Only indices that cannot be negative
+are cast.
+
+Environment (read once, for the process default): ``SHAPEFLOW_KERNELS`` =
+``0``/``off``, ``1``/``auto`` or ``force``; ``SHAPEFLOW_SMALL_PAGES=1``.
+
+Examples
+--------
+>>> from shapeflow import accel
+>>> accel.current().kernels in ("auto", "off", "force")
+True
+>>> with accel.use(kernels="off"):
+...     accel.compiled("operators", 10**9) is None
+True
+"""
+
+from __future__ import annotations
+
+import contextlib
+import contextvars
+import dataclasses
+import functools
+import importlib
+import logging
+import os
+import threading
+
+from ..errors import ParameterError
+
+__all__ = ["Backend", "current", "use", "enabled", "set_default", "numba_available", "available", "compiled",
+           "heavy", "small_pages", "zeros", "KERNEL_MODES", "CONSUMERS"]
+
+KERNEL_MODES = ("auto", "off", "force")
+#: the packages with a ``compiled`` module of kernels (``shapeflow.<name>.compiled``)
+CONSUMERS = ("mesh", "geometry", "operators", "linalg", "flow", "sculpt")
+
+_log = logging.getLogger("shapeflow")
+
+
+@dataclasses.dataclass(frozen=True)
+class Backend:
+    """Acceleration settings (immutable; see the module docstring for each)."""
+
+    kernels: str = "auto"
+    min_size: int = 50_000
+    small_pages: bool = False
+
+    def __post_init__(self):
+        if self.kernels not in KERNEL_MODES:
+            raise ParameterError(f"kernels must be one of {', '.join(KERNEL_MODES)}, got {self.kernels!r}")
+        if isinstance(self.min_size, bool) or not isinstance(self.min_size, int) or self.min_size < 0:
+            raise ParameterError(f"min_size must be an integer >= 0, got {self.min_size!r}")
+        if not isinstance(self.small_pages, bool):
+            raise ParameterError(f"small_pages must be True or False, got {self.small_pages!r}")
+
+    def uses_compiled(self, size: int, *, min_size: int | None = None) -> bool:
+        """Whether a problem of ``size`` runs compiled (numba installed and the size reached)."""
+        if self.kernels == "off":
+            return False
+        if self.kernels == "auto" and size < (self.min_size if min_size is None else min_size):
+            return False
+        return numba_available()
+
+
+def _from_environment() -> Backend:
+    env = os.environ.get("SHAPEFLOW_KERNELS", "auto").strip().lower()
+    mode = "off" if env in ("0", "false", "no", "off") else "force" if env == "force" else "auto"
+    pages = os.environ.get("SHAPEFLOW_SMALL_PAGES", "0").strip().lower() in ("1", "true", "yes", "on")
+    return Backend(kernels=mode, small_pages=pages)
+
+
+_default = [_from_environment()]
+_active: contextvars.ContextVar[Backend | None] = contextvars.ContextVar("shapeflow_backend", default=None)
+
+
+def current() -> Backend:
+    """The backend in force in this thread (the one of the innermost :func:`use`, else the default)."""
+    b = _active.get()
+    return _default[0] if b is None else b
+
+
+@contextlib.contextmanager
+def use(backend: Backend | None = None, **changes):
+    """Run a ``with`` block under ``backend``, or the current one with ``changes``, in this thread only.
+
+    >>> with use(kernels="off", min_size=0):
+    ...     current().kernels
+    'off'
+    """
+    b = dataclasses.replace(backend or current(), **changes)
+    token = _active.set(b)
+    try:
+        yield b
+    finally:
+        _active.reset(token)
+
+
+def enabled(on: bool):
+    """``use(kernels="off")``, or the compiled kernels back on (keeping ``"force"`` if it is in force)."""
+    mode = current().kernels
+    return use(kernels=("force" if mode == "force" else "auto") if on else "off")
+
+
+def set_default(backend: Backend | None = None, **changes) -> Backend:
+    """Replace the process default (threads not inside :func:`use` see it); returns the old one."""
+    old = _default[0]
+    _default[0] = dataclasses.replace(backend or old, **changes)
+    return old
+
+
+@functools.cache
+def numba_available() -> bool:
+    """True when numba can be imported (the ``fast`` extra)."""
+    try:
+        import numba  # noqa: F401
+    except ImportError as exc:
+        _log.info("shapeflow: compiled kernels unavailable (%s); NumPy/SciPy paths are used", exc)
+        return False
+    return True
+
+
+def available() -> bool:
+    """True when numba is installed and the current backend does not switch the kernels off."""
+    return current().kernels != "off" and numba_available()
+
+
+@functools.cache
+def _module(consumer: str):
+    if consumer not in CONSUMERS:
+        raise ValueError(f"no compiled kernels for {consumer!r}")
+    return importlib.import_module(f"shapeflow.{consumer}.compiled")
+
+
+def compiled(consumer: str, size: int, *, min_size: int | None = None):
+    """The compiled kernels of ``shapeflow.<consumer>`` when the current backend runs a problem
+    of ``size`` compiled, else None (use the NumPy/SciPy twin)."""
+    if not current().uses_compiled(size, min_size=min_size):
+        return None
+    return _module(consumer)
+
+
+def zeros(shape, dtype=None):
+    """``np.zeros`` as ``np.empty`` + fill: the pages are first touched by the calling thread,
+    not by both threads of a parallel loop (concurrent page faults contend for the memory map)."""
+    import numpy as np
+
+    a = np.empty(shape, np.float64 if dtype is None else dtype)
+    a.fill(0)
+    return a
+
+
+# --------------------------------------------------------------------------
+# NumPy's transparent-huge-page hint (only with small_pages=True)
+# --------------------------------------------------------------------------
+
+_pages = {"depth": 0, "saved": None}
+_pages_lock = threading.Lock()
+
+
+@functools.cache
+def madvise_setter():
+    """NumPy's switch of its huge-page hint, or None where this NumPy has none."""
+    import numpy as np
+
+    for mod in ("_core", "core"):
+        try:
+            return getattr(getattr(np, mod).multiarray, "_set_madvise_hugepage")
+        except AttributeError:
+            continue
+    return None
+
+
+@contextlib.contextmanager
+def small_pages():
+    """Inside the block NumPy allocates without asking for huge pages (when the backend says so).
+
+    A no-op unless ``current().small_pages``.  Re-entrant and thread-safe:
+    the first block to enter saves NumPy's setting, the last one to leave
+    restores it.  The hint changes how fast fresh memory arrives, never a
+    result.
+    """
+    setter = madvise_setter() if current().small_pages else None
+    if setter is None:
+        yield
+        return
+    with _pages_lock:
+        if _pages["depth"] == 0:
+            _pages["saved"] = setter(False)
+        _pages["depth"] += 1
+    try:
+        yield
+    finally:
+        with _pages_lock:
+            _pages["depth"] -= 1
+            if _pages["depth"] == 0:
+                setter(bool(_pages["saved"]))
+
+
+def heavy(fn):
+    """Decorator for shapeflow's heavy entry points: run ``fn`` inside :func:`small_pages`."""
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        with small_pages():
+            return fn(*args, **kwargs)
+    return wrapper

@@ -1,0 +1,162 @@
+"""Compiled parts of the flow's systems: the interior matrix, its couplings and permuted gathers.
+
+The NumPy/SciPy reference is :mod:`shapeflow.flow.system` and :mod:`shapeflow.flow.solver`; the
+tests compare the two.
+Conventions of all compiled kernels: :mod:`shapeflow.accel`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import get_num_threads, njit, prange
+
+
+def interior_data(nnz, pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw):
+    """Matrix data of the interior system (``FlowSolver._interior_system``) in one pass.
+
+    Free rows: c + D on the diagonal, −w_ij where both ends are free; other
+    rows are identity rows.  Returns the data array, the diagonal, the numbers
+    of pairs with only their first / only their second end free (their terms
+    go to the right-hand side; see :func:`interior_coupling`) and max D/c over
+    the free rows with c ≠ 0 (for the κ estimate).
+    """
+    data = np.empty(nnz)
+    diag = np.empty(pos_diag.size)
+    n_a, n_b, ratio = _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data, diag)
+    return data, diag, (int(n_a), int(n_b)), float(ratio)
+
+
+def interior_coupling(pairs, free, pw, mixed):
+    """The pairs with exactly one free end, as ``FlowSolver._interior_system`` lists them:
+    (free end, other end, weight), first the pairs whose first end is free, then the others,
+    each group in pair order.  ``mixed`` = the two counts from :func:`interior_data`."""
+    n_a, n_b = mixed
+    r = np.empty(n_a + n_b, np.int64)
+    s = np.empty(n_a + n_b, np.int64)
+    e = np.empty(n_a + n_b)
+    _interior_coupling(pairs, free, pw, n_a, r, s, e)
+    return r, s, e
+
+
+@njit(cache=True)
+def _interior_coupling(pairs, free, pw, n_a, r, s, e):
+    qa = 0
+    qb = n_a
+    for p in range(pw.size):
+        a = pairs[p, 0]
+        b = pairs[p, 1]
+        fa = free[np.uint64(a)]
+        fb = free[np.uint64(b)]
+        if fa and not fb:
+            r[qa] = a
+            s[qa] = b
+            e[qa] = pw[p]
+            qa += 1
+        elif fb and not fa:
+            r[qb] = b
+            s[qb] = a
+            e[qb] = pw[p]
+            qb += 1
+
+
+@njit(cache=True)
+def _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data, diag):
+    ratio = 0.0
+    for i in range(pos_diag.size):
+        if free[i]:
+            d = c[i] + deg[i]
+            if c[i] != 0.0:
+                ratio = max(ratio, abs(deg[i] / c[i]))
+            else:
+                ratio = max(ratio, abs(deg[i]))
+        else:
+            d = 1.0
+        diag[i] = d
+        data[np.uint64(pos_diag[i])] = d
+    n_a = 0
+    n_b = 0
+    for p in range(pos_upper.size):
+        fa = free[np.uint64(pairs[p, 0])]
+        fb = free[np.uint64(pairs[p, 1])]
+        v = -pw[p] if (fa and fb) else 0.0
+        if fa and not fb:
+            n_a += 1
+        elif fb and not fa:
+            n_b += 1
+        data[np.uint64(pos_upper[p])] = v
+        data[np.uint64(pos_lower[p])] = v
+    return n_a, n_b, ratio
+
+
+def scaled_abs_row_max(indptr, indices, data, s):
+    """max over rows with s_i > 0 of s_i Σ_j |a_ij| s_j (a Gershgorin bound of SAS)."""
+    return float(_scaled_abs_row_max(indptr, indices, data, s, get_num_threads()))
+
+
+@njit(parallel=True, cache=True)
+def _scaled_abs_row_max(indptr, indices, data, s, nt):
+    n = indptr.size - 1
+    part = np.zeros(nt)
+    for t in prange(nt):            # each thread its range of rows; the max of maxima is exact
+        best = 0.0
+        for i in range(t * n // nt, (t + 1) * n // nt):
+            si = s[i]
+            if si > 0.0:
+                acc = 0.0
+                for q in range(indptr[i], indptr[i + 1]):
+                    acc += abs(data[q]) * s[np.uint64(indices[q])]
+                best = max(best, si * acc)
+        part[t] = best
+    return part.max()
+
+
+def take(a, idx):
+    """``a[idx]`` for a 1-D or (n, 3) float64 array and non-negative indices, on all threads
+    (NumPy's fancy indexing converts int32 indices to a new intp array first)."""
+    out = np.empty((idx.size,) + a.shape[1:], a.dtype)
+    if a.ndim == 1:
+        _take1(a, idx, out)
+    else:
+        _take3(a, idx, out)
+    return out
+
+
+@njit(parallel=True, cache=True)
+def _take1(a, idx, out):
+    for i in prange(idx.size):
+        out[i] = a[np.uint64(idx[i])]
+
+
+@njit(parallel=True, cache=True)
+def _take3(a, idx, out):
+    for i in prange(idx.size):
+        j = np.uint64(idx[i])
+        out[i, 0] = a[j, 0]
+        out[i, 1] = a[j, 1]
+        out[i, 2] = a[j, 2]
+
+
+@njit(parallel=True, cache=True)
+def take_free(V, perm, free, out):
+    """out[i] = V[perm[i]] where free[perm[i]], else 0 (rows of (n, 3) arrays)."""
+    for i in prange(perm.size):
+        j = np.uint64(perm[i])
+        f = free[j]
+        out[i, 0] = V[j, 0] if f else 0.0
+        out[i, 1] = V[j, 1] if f else 0.0
+        out[i, 2] = V[j, 2] if f else 0.0
+
+
+@njit(parallel=True, cache=True)
+def untake_free(Y, inv, free, V, out):
+    """out[v] = Y[inv[v]] where free[v], else V[v] (rows of (n, 3) arrays)."""
+    for v in prange(inv.size):
+        if free[v]:
+            j = np.uint64(inv[v])
+            out[v, 0] = Y[j, 0]
+            out[v, 1] = Y[j, 1]
+            out[v, 2] = Y[j, 2]
+        else:
+            out[v, 0] = V[v, 0]
+            out[v, 1] = V[v, 1]
+            out[v, 2] = V[v, 2]

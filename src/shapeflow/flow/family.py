@@ -1,0 +1,279 @@
+"""Families of shapes from one solve: the flow for many λ at once (figure 1).
+``family(mesh, lams, **flow_options)`` returns the same shapes as calling
+``flow(mesh, lam, **flow_options)`` for every λ, as one array ``(k, n, 3)``,
+but shares the work between the members.
+
+Why one solve is enough (one iteration)
+---------------------------------------
+For one step of eq. 11 (docs/method.md, "The step"; :mod:`shapeflow.flow`)
+the free interior vertices solve
+
+    (C_λ + K) X = C_λ V + g,      C_λ = diag(m_i / (|λ| w_i)) = C_1 / |λ|,
+
+with ``K = D − W`` restricted to the free vertices (positive semi-definite)
+and ``g`` the couplings to the fixed vertices and to the boundary vertices,
+which are solved first with their own factor λ_b — independently of λ.
+Written for the displacement ``Δ = X − V`` the right-hand side no longer
+depends on λ either,
+
+    (C_λ + K) Δ = g − K V =: r0        (the initial residual of flow()'s
+                                          CG, which starts from V),
+
+and the symmetric scaling ``Y = C_1^{1/2} Δ`` turns every member into a
+*shifted* system of one matrix,
+
+    (σ I + M) Y = C_1^{-1/2} r0,      σ = 1/|λ|,   M = C_1^{-1/2} K C_1^{-1/2}.
+
+(Only a scaling by C_1 makes the λ-dependent part a multiple of the identity:
+with D-based scaling, ``diag(1/(|λ| w_i)) + D^{-1/2} K D^{-1/2}``, the shift is
+not uniform as soon as the weights vary.)  Krylov spaces are invariant under
+shifts, so multi-shift CG (CG-M: Jegerlehner 1996, hep-lat/9612014; Frommer
+2003) solves every σ with the matrix-vector products of the hardest member
+alone (smallest σ = largest |λ|, the "seed").  Each member is then
+``V + sign(λ) Δ`` — so +λ and −λ share one shift, and λ = 0 is the identity
+(its boundary still moves when λ_b ≠ 0, exactly as in flow()).
+
+Each member stops on its own residual, ``‖r_σ‖ ≤ rtol · ‖r0‖`` in the scaled
+norm (``r_σ = ζ_σ r_seed`` is known for free), and converged members stop
+being updated.  Without weights the scaled norm *is* the Jacobi-preconditioned
+norm flow()'s CG stops on, so the seed member reproduces flow()'s CG
+iterations exactly (in exact arithmetic); with weights both are valid
+preconditioners and the results agree to the CG tolerance.
+
+Cost: the shifted solutions are linear combinations of the seed residuals.
+Rather than two axpy passes per member per iteration (48 members × 3 columns
+× n — more than the matrix-vector product), the residuals are kept in a block
+(:data:`BLOCK_BYTES`) and the members' iterates are formed with one GEMM per
+block — usually one in all (:func:`multishift_cg`); the per-member
+recurrences only touch coefficients.  Measured on the 46,850-vertex figure-1
+family (``benchmarks/bench_family.py``, 2-core machine under load ~2): the
+48 members in 0.65–0.9 s, about 1.2× the hardest member's flow() alone,
+against ~21 s for 48 flow() calls and ~200 s for 48 Blender evaluations.
+
+Paths
+-----
+``"multishift"``
+    One iteration (``update`` is irrelevant then: flow() rebuilds the
+    operator only from the second iteration on), paper or Blender mode as
+    long as the interior system is positive definite, ``solver`` "auto" or
+    "cg".  ``preserve_volume`` is a per-member rescale after the step (exactly
+    flow()'s), so it keeps this path.
+``"separate"``
+    Per-λ solves with one :class:`~shapeflow.flow.FlowSolver` (the cotangent
+    structure and the operator at the input positions are built once; each
+    run builds its own λ-dependent matrices): several iterations (the
+    right-hand sides of the second step differ per member), Blender mode with
+    indefinite rows (LU), an explicit ``solver="cholesky"`` or ``"lu"``, or
+    ``strategy="separate"``; also when every nonzero |λ| is far beyond the CG
+    budget (:data:`HOPELESS`; e.g. the area-normalised eq. 9 on a model of
+    size ~1), where flow() itself factorises.  Within the multishift path,
+    members beyond that budget, or that the shared CG did not converge within
+    its iteration cap, are redone this way (``report.fallback_members``).
+``"unchanged"``
+    Nothing to do (``iterations=0``, no axes, all weights 0, no faces, or
+    every λ and λ_b zero): every member is the input.
+
+The report (``family(..., return_report=True)`` or ``.report`` on every mesh
+of :func:`family_meshes`) is a :class:`FamilyReport` saying which path ran and
+why.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Callable, Sequence
+
+import numpy as np
+
+from .. import accel, params
+from ..errors import ParameterError
+from ..geometry.normals import refresh_normals
+from ..linalg.spd import DEFAULT_RTOL
+from ..mesh import Mesh
+from .family_paths import plan_shared_solve, separate_solves, shared_solve
+from .options import check_run_options
+from .report import FamilyReport
+from .solver import FlowSolver
+
+__all__ = ["family", "family_meshes", "FamilyReport", "STRATEGIES"]
+
+
+#: ``strategy=`` values: choose, insist on the shared solve, or force per-λ solves
+STRATEGIES = ("auto", "multishift", "separate")
+
+
+def check_lams(lams) -> np.ndarray:
+    if isinstance(lams, (str, bytes)) or np.ndim(lams) != 1:
+        raise ParameterError(f"lams must be a 1-D sequence of numbers (one λ per member), got {lams!r}")
+    vals = [params.lam(f"lams[{i}]", x) for i, x in enumerate(lams)]
+    if not vals:
+        raise ParameterError("lams is empty: give at least one λ")
+    return np.array(vals, dtype=np.float64)
+
+
+@accel.heavy
+def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterations: int = 1,
+           normalized: bool = True, weights=None, invert_weights: bool = False,
+           preserve_volume: bool = False, axes: Sequence[bool] | str = (True, True, True),
+           scheme: str | None = None, update: str = "fixed", compat: str | None = None,
+           solver: str = "auto", rtol: float = DEFAULT_RTOL, strategy: str = "auto",
+           progress: Callable[[int, int], None] | None = None, return_report: bool = False):
+    """The flow for every λ of ``lams`` at once: an array ``(k, n, 3)``.
+
+    ``result[m]`` equals ``flow(mesh, lams[m], **options).vertices`` (to the
+    CG tolerance), but one iteration of all members costs about as much as the
+    hardest member alone (multi-shift CG; see the module docstring).
+
+    Parameters
+    ----------
+    mesh : Mesh
+    lams : sequence of float
+        One λ per member, any signs, zeros and repeats allowed (+λ and −λ
+        share one solve).  Figure 1 of the paper: ``np.arange(0, -240, -5)``.
+    lam_border, iterations, normalized, weights, invert_weights, preserve_volume,
+    axes, scheme, update, compat, solver, rtol
+        As in :func:`shapeflow.flow` (validated the same way).  ``rtol`` is the
+        tolerance of the shared solve too: each member stops when its own
+        residual fell by ``rtol``.
+    strategy : {"auto", "multishift", "separate"}
+        ``"auto"`` takes the shared solve wherever the shift structure holds,
+        ``"multishift"`` insists (ParameterError where it does not hold),
+        ``"separate"`` solves every λ on its own (one shared FlowSolver).
+    progress : callable(done, total), optional
+        Called as members are finished (total = number of members).
+    return_report : bool
+        Also return a :class:`FamilyReport` (which path ran and why).
+
+    Returns
+    -------
+    ndarray (k, n, 3), or ``(positions, FamilyReport)`` with ``return_report``.
+
+    Examples
+    --------
+    >>> import numpy as np, shapeflow as sf
+    >>> mesh = sf.load_example("spot")
+    >>> shapes, report = sf.family(mesh, np.arange(0.0, -240.0, -5.0), return_report=True)
+    >>> shapes.shape[0], report.path
+    (48, 'multishift')
+    """
+    t0 = time.perf_counter()
+    if not isinstance(strategy, str) or strategy not in STRATEGIES:
+        raise ParameterError(f"strategy must be one of {', '.join(STRATEGIES)}, got {strategy!r}")
+    lam_arr = check_lams(lams)
+    preserve_volume = params.flag("preserve_volume", preserve_volume)
+    return_report = params.flag("return_report", return_report)
+    params.progress(progress)
+    flow_solver = FlowSolver(mesh, lam_border=lam_border, normalized=normalized, weights=weights,
+                    invert_weights=invert_weights, scheme=scheme, compat=compat, solver=solver, rtol=rtol)
+    if flow_solver.pow2:   # extreme coordinates: the family of the exact power-of-two copy, scaled back
+        e = flow_solver.pow2
+        lams_in = lam_arr if normalized else np.ldexp(lam_arr, -2 * e)
+        res = family(flow_solver.mesh, lams_in, lam_border=lam_border, iterations=iterations, normalized=normalized,
+                     weights=flow_solver.w, preserve_volume=preserve_volume, axes=axes, scheme=scheme, update=update,
+                     compat=compat, solver=solver, rtol=rtol, strategy=strategy, progress=progress,
+                     return_report=True)
+        shapes, rep = res
+        rep.lams = lam_arr
+        with np.errstate(over="ignore"):
+            shapes = np.ldexp(shapes, e)
+        if not np.isfinite(shapes).all():
+            raise ParameterError("lams: the result leaves the range of double precision (|x| > 1.8e308)")
+        rep.notes.append(f"computed on the coordinates scaled by 2^{-e} (exact), then scaled back")
+        return (shapes, rep) if return_report else shapes
+    ax = check_run_options(iterations, update, axes, flow_solver.blender)
+    k, n = lam_arr.size, mesh.n_vertices
+    from ..budget import check_memory
+
+    # the (k, n, 3) result, plus the shared solve's work (~4 such blocks of one batch of members)
+    check_memory(f"a family of {k:,} members of {n:,} vertices", 24.0 * n * (k + 4 * min(k, 64)),
+                 parameter="lams")
+    report = FamilyReport(lams=lam_arr, path="unchanged", reason="", lam_border=flow_solver.lam_border,
+                          iterations=int(iterations), mode="blender" if flow_solver.blender else "paper",
+                          scheme=flow_solver.scheme, update=update, member_iterations=np.zeros(k, np.int64))
+    V0 = mesh.vertices
+    done = [0]
+
+    def tick(m: int = 1) -> None:
+        done[0] = min(k, done[0] + m)
+        if progress is not None:
+            progress(done[0], k)
+
+    def finish(out):
+        report.notes = list(dict.fromkeys(report.notes))
+        report.seconds = time.perf_counter() - t0
+        return (out, report) if return_report else out
+
+    # --- nothing to do: the conditions of FlowSolver.run(), for every member
+    nothing = None
+    if iterations == 0:
+        nothing = "iterations=0"
+    elif not ax.any():
+        nothing = "no axis may change"
+    elif not (flow_solver.w > 0).any():
+        nothing = "every weight is 0"
+    elif mesh.n_faces == 0:
+        nothing = "the mesh has no faces"
+    elif not lam_arr.any() and flow_solver.lam_border == 0.0:
+        nothing = "every λ and λ_b are 0"
+    if nothing is not None:
+        report.reason = nothing
+        out = np.broadcast_to(V0, (k, n, 3)).copy()
+        tick(k)
+        return finish(out)
+
+    op = flow_solver.operator()
+    report.locked = int(op.locked.sum())
+    report.degenerate_triangles = op.n_bad
+    report.boundary_vertices = int(op.boundary.sum())
+
+    # --- which path
+    why_not = None
+    if iterations > 1:
+        why_not = (f"{iterations} iterations: from the second step on the right-hand sides differ "
+                   "per member, so the systems are no longer shifts of one")
+    elif flow_solver.solver_method in ("cholesky", "lu"):
+        why_not = f"solver={flow_solver.solver_method!r} was asked for"
+    plan = None
+    if strategy == "separate":
+        why_not = "strategy='separate' was asked for"
+    elif why_not is None:
+        plan = plan_shared_solve(flow_solver, op, lam_arr, report.notes)
+        if isinstance(plan, str):
+            why_not, plan = plan, None
+    if strategy == "multishift" and why_not is not None:
+        raise ParameterError(f"the multi-shift solve does not apply here: {why_not}")
+
+    if why_not is not None:
+        report.path, report.reason = "separate", why_not
+        out = np.empty((k, n, 3))
+        separate_solves(flow_solver, lam_arr, range(k), out, report, iterations=iterations,
+                        preserve_volume=preserve_volume, axes=ax, update=update, tick=tick)
+        return finish(out)
+
+    report.path = "multishift"
+    report.reason = ("one iteration: every member solves (σI + M) Y = b with σ = 1/|λ| "
+                     "for one matrix M and one right-hand side b")
+    out = shared_solve(flow_solver, op, plan, lam_arr, ax, preserve_volume, report, tick)
+    if report.fallback_members:
+        separate_solves(flow_solver, lam_arr, report.fallback_members, out, report, iterations=iterations,
+                  preserve_volume=preserve_volume, axes=ax, update=update, tick=tick)
+    return finish(out)
+
+
+def family_meshes(mesh: Mesh, lams: Sequence[float], **options) -> list[Mesh]:
+    """:func:`family` as a list of meshes (same faces and attributes as ``mesh``).
+
+    Every mesh carries ``.lam`` (its λ) and ``.report``, the shared
+    :class:`FamilyReport` of the whole family.  Options as :func:`family`
+    (``return_report`` is not accepted: the report is on the meshes).
+    """
+    if "return_report" in options:
+        raise ParameterError("family_meshes() puts the report on every mesh (.report); drop return_report")
+    shapes, report = family(mesh, lams, return_report=True, **options)
+    out = []
+    for lam, V in zip(report.lams, shapes):
+        m = refresh_normals(mesh.with_vertices(V))
+        m.lam = float(lam)
+        m.report = report
+        out.append(m)
+    return out

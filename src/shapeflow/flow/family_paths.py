@@ -1,0 +1,217 @@
+"""The two ways a family is solved: one shared multi-shift solve, or a flow per member.
+
+:func:`plan_shared_solve` decides whether the shared solve applies (and for
+which members); :func:`shared_solve` runs it on the
+:class:`~shapeflow.flow.system.SystemBuilder` of the family's
+:class:`~shapeflow.flow.solver.FlowSolver`; :func:`separate_solves` runs
+``FlowSolver.run`` for the members left over.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..linalg.multishift import multishift_cg
+from ..linalg.spd import estimate_cg_iterations
+from .report import FamilyReport, FlowReport
+from .solver import FlowSolver
+
+__all__ = ["SHARED_CG_MAX_RATIO", "SharedPlan", "plan_shared_solve", "boundary_solve", "shared_solve",
+           "separate_solves"]
+
+
+#: members whose estimated CG iterations exceed this many times the iteration cap are
+#: not even tried in the shared solve (the estimate is a bound: small meshes converge
+#: much sooner, and members that do not converge are redone separately anyway)
+SHARED_CG_MAX_RATIO = 3.0
+
+
+@dataclass
+class SharedPlan:
+    interior_sys: object            # flow's interior system for the seed λ (None: no free interior vertex)
+    lam_seed: float
+    scale: np.ndarray       # C_1^{-1/2} on free vertices, 1 elsewhere
+    sigmas: np.ndarray      # distinct σ = 1/|λ| of the members solved together, ascending
+    member_shift: np.ndarray  # (k,) index into sigmas; -1: λ = 0 (nothing to solve) or solved separately
+    hard: np.ndarray        # (k,) members left to separate solves (|λ| too large for the shared CG)
+    maxiter: int
+    note: str = ""
+
+
+def plan_shared_solve(flow_solver: FlowSolver, op, lams: np.ndarray, notes: list):
+    """The shared interior system, or a string saying why there is none.
+
+    Members whose |λ| would need far more CG iterations than flow()'s CG
+    allows (condition number 1 + 2|λ| max(D w / m), the estimate flow()
+    itself uses; :data:`SHARED_CG_MAX_RATIO`) are left to separate solves, where flow()
+    picks a direct solver; the shared solve takes the others.
+    """
+    n = flow_solver.mesh.n_vertices
+    maxiter = max(200, 10 * int(np.sqrt(n)) + 100)
+    absl = np.abs(lams)
+    nz = absl > 0
+    hard = np.zeros(lams.size, bool)
+    interior_sys = None
+    if nz.any():
+        interior_sys = flow_solver.systems.interior(op, float(absl.max()), 1, notes)
+    if interior_sys is not None:
+        free = interior_sys.free
+        c1 = interior_sys.c[free] * float(absl.max())        # m_i / w_i
+        if not (np.all(c1 > 0) and np.all(np.isfinite(c1)) and np.all(op.deg[free] >= 0)):
+            return "the interior system is indefinite (Blender's rows with negative cotangent degree; LU per λ)"
+        rho = float(np.max(op.deg[free] / c1))
+        est = np.array([estimate_cg_iterations(1.0 + 2.0 * a * rho, flow_solver.rtol) for a in absl])
+        hard = nz & (est > SHARED_CG_MAX_RATIO * maxiter)
+        if hard.all() or (hard | ~nz).all():
+            a = float(absl.max())
+            its = estimate_cg_iterations(1.0 + 2.0 * a * rho, flow_solver.rtol)
+            return (f"the largest |λ| = {a:g} needs about {its:.0f} "
+                    f"CG iterations (cap {maxiter}) and so do all the others: a direct solver per λ is cheaper")
+    easy = nz & ~hard
+    uniq = np.unique(absl[easy])                     # ascending |λ|
+    sigmas = 1.0 / uniq[::-1]                        # ascending σ: hardest first
+    member_shift = np.full(lams.size, -1)
+    if easy.any():
+        member_shift[easy] = sigmas.size - 1 - np.searchsorted(uniq, absl[easy])
+    lam_seed = float(uniq[-1]) if uniq.size else 0.0
+    if interior_sys is not None and lam_seed != float(absl.max()):
+        interior_sys = flow_solver.systems.interior(op, lam_seed, 1, notes)
+    scale = np.ones(n)
+    note = ""
+    if interior_sys is not None:
+        scale[interior_sys.free] = 1.0 / np.sqrt(interior_sys.c[interior_sys.free] * lam_seed)
+    if hard.any():
+        note = (f"{int(hard.sum())} member(s) with |λ| > {lam_seed:g} solved separately: the shared CG "
+                f"would need far more than {maxiter} iterations for them")
+    return SharedPlan(interior_sys, lam_seed, scale, sigmas, member_shift, hard, maxiter, note)
+
+
+def boundary_solve(flow_solver: FlowSolver, op, V: np.ndarray):
+    """Solve the boundary block (independent of λ): positions X and the system."""
+    boundary_sys = flow_solver.systems.boundary(op, flow_solver.lam_border)
+    return flow_solver.systems.solve_boundary(V, boundary_sys), boundary_sys
+
+
+def shared_solve(flow_solver: FlowSolver, op, plan: SharedPlan, lams: np.ndarray, ax: np.ndarray, preserve_volume: bool,
+                report: FamilyReport, tick) -> np.ndarray:
+    mesh = flow_solver.mesh
+    V = mesh.vertices
+    n, k = V.shape[0], lams.size
+    X, boundary_sys = boundary_solve(flow_solver, op, V)
+    interior_sys = plan.interior_sys
+    report.free_vertices = int((interior_sys.free.sum() if interior_sys is not None else 0)
+                               + (boundary_sys.free.sum() if boundary_sys is not None else 0))
+    report.shifts = int(plan.sigmas.size)
+    report.solver = "multishift-cg" if interior_sys is not None else "none"
+    # every member starts as V with the boundary moved (flow(): sign of λ_b, enabled axes only)
+    base = V.copy()
+    if boundary_sys is not None:
+        sb = 1.0 if flow_solver.lam_border >= 0 else -1.0
+        base[np.ix_(boundary_sys.idx, ax)] += sb * (X[boundary_sys.idx] - V[boundary_sys.idx])[:, ax]
+    if not np.all(np.isfinite(X)):
+        bad = ~np.isfinite(X).all(axis=1)
+        X[bad] = V[bad]
+        base[bad] = V[bad]
+        report.notes.append(f"{int(bad.sum())} vertices with a non-finite solution kept in place")
+    out = np.empty((k, n, 3))
+    out[:] = base
+    zero = (plan.member_shift < 0) & ~plan.hard     # λ = 0: V with the boundary moved
+    tick(int(zero.sum()))
+    if plan.hard.any():
+        report.fallback_members = [int(m) for m in np.flatnonzero(plan.hard)]
+        report.notes.append(plan.note)
+    solved = plan.member_shift >= 0
+    if interior_sys is not None and solved.any():
+        # r0 = b − A X for the seed (λ-independent: g − K V on free rows, 0 elsewhere)
+        r_, s_, e_ = interior_sys.coupling
+        free = interior_sys.free
+        rhs = np.where(free[:, None], interior_sys.c[:, None] * V, X)
+        if r_.size:
+            for j in range(3):
+                rhs[:, j] += np.bincount(r_, e_ * X[s_, j], minlength=n)
+        A = interior_sys.A
+        cols = np.flatnonzero(ax)
+        R0 = np.empty((cols.size, n))
+        for t, j in enumerate(cols):
+            R0[t] = (rhs[:, j] - A @ X[:, j]) * plan.scale
+        # the seed matrix scaled: S A S = σ_seed I + M on free rows, I elsewhere
+        S = plan.scale
+        As = A.copy()
+        As.data *= np.repeat(S, np.diff(As.indptr)) * S[As.indices]
+        deltas = plan.sigmas - plan.sigmas[0]
+        member_of_shift = [np.flatnonzero(plan.member_shift == i) for i in range(plan.sigmas.size)]
+        counted = np.zeros(plan.sigmas.size, bool)
+
+        def on_progress(conv):
+            new = conv & ~counted
+            counted[new] = True
+            tick(int(sum(member_of_shift[i].size for i in np.flatnonzero(new))))
+
+        res = multishift_cg(As, R0, deltas, rtol=flow_solver.rtol, maxiter=plan.maxiter, progress=on_progress)
+        report.krylov_iterations = res.krylov_iterations
+        Y = res.X                                           # (c, shifts, n)
+        Y *= S                                              # displacement Δ = C_1^{-1/2} Y (0 off the free rows)
+        ok = res.converged.all(axis=1) & np.isfinite(Y).all(axis=(0, 2))
+        its = np.where(res.converged, res.iterations, res.krylov_iterations).max(axis=1)
+        report.member_iterations[solved] = its[plan.member_shift[solved]]
+        sign = np.where(lams >= 0, 1.0, -1.0)
+        for m in np.flatnonzero(solved):
+            i = plan.member_shift[m]
+            if not ok[i]:
+                continue
+            for t, j in enumerate(cols):
+                if sign[m] > 0:
+                    out[m, :, j] += Y[t, i]
+                else:
+                    out[m, :, j] -= Y[t, i]
+        bad = np.flatnonzero(solved & ~ok[np.maximum(plan.member_shift, 0)])
+        if bad.size:
+            report.fallback_members = sorted(set(report.fallback_members) | {int(m) for m in bad})
+            report.notes.append(f"{bad.size} member(s) did not converge in {plan.maxiter} shared iterations "
+                                "and were solved separately")
+    elif solved.any():
+        tick(int(solved.sum()))                             # no free interior vertex: boundary moves only
+    if preserve_volume:
+        center0 = V.mean(axis=0)
+        skip = set(report.fallback_members)
+        for m in range(k):
+            moved = (lams[m] != 0.0 and interior_sys is not None) or boundary_sys is not None
+            if m in skip or not moved:
+                continue   # flow() returns the input unchanged there ("no free vertex"): no rescale
+            r = FlowReport(lam=float(lams[m]), lam_border=flow_solver.lam_border, iterations=1, mode=report.mode,
+                           scheme=report.scheme, update=report.update)
+            out[m] = flow_solver.systems.rescale_volume(V, out[m], ax, center0, r)
+            report.notes.extend(r.notes)
+    return out
+
+
+def separate_solves(flow_solver: FlowSolver, lams: np.ndarray, members, out: np.ndarray, report: FamilyReport, *,
+              iterations: int, preserve_volume: bool, axes: np.ndarray, update: str, tick) -> None:
+    """flow() for each listed member on the shared FlowSolver (operator built once)."""
+    members = list(members)
+    solvers_used = []
+    reports = report.member_reports or [None] * lams.size
+    cache: dict = {}
+    for m in members:
+        lam = float(lams[m])
+        if lam not in cache:
+            res = flow_solver.run(lam, iterations=iterations, preserve_volume=preserve_volume, axes=axes, update=update)
+            cache[lam] = res
+        res = cache[lam]
+        out[m] = res.vertices
+        r = res.report
+        reports[m] = r
+        report.member_iterations[m] = max(r.cg_iterations) if r.cg_iterations else (-1 if r.solver != "none" else 0)
+        if r.solver != "none":
+            solvers_used.append(r.solver)
+        report.notes.extend(r.notes)
+        tick()
+    report.member_reports = reports
+    used = "/".join(dict.fromkeys(solvers_used))
+    if report.path == "separate":
+        report.solver = used or "none"
+        report.free_vertices = max((r.free_vertices for r in reports if r is not None), default=0)
+    elif used:
+        report.solver = f"{report.solver} + {used}"

@@ -1,0 +1,90 @@
+"""What a run did: :class:`FlowReport` (``result.report`` of a flow) and :class:`FamilyReport` (of a family)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["FlowReport", "FamilyReport"]
+
+
+@dataclass
+class FlowReport:
+    """What a flow run did (``result.report`` on the returned mesh)."""
+
+    lam: float
+    lam_border: float
+    iterations: int
+    mode: str
+    scheme: str
+    update: str
+    solver: str = "none"
+    cg_iterations: list = field(default_factory=list)
+    locked: int = 0
+    locked_vertices: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    degenerate_triangles: int = 0
+    boundary_vertices: int = 0
+    free_vertices: int = 0
+    volume_scale: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+    seconds: float = 0.0
+    max_displacement: float = 0.0
+    steps: int = 0            # steps taken (fewer than ``iterations`` only when no vertex was left free)
+
+    def summary(self) -> str:
+        """One line: time, max displacement, locked vertices, solver."""
+        its = f", CG iterations {self.cg_iterations}" if self.cg_iterations else ""
+        notes = f"; {'; '.join(self.notes)}" if self.notes else ""
+        return (f"{self.seconds:.3f} s, max displacement {self.max_displacement:.6g}, "
+                f"{self.locked} locked vertices, solver {self.solver}{its}{notes}")
+
+
+@dataclass
+class FamilyReport:
+    """What :func:`family` did.
+
+    ``path`` is ``"multishift"``, ``"separate"`` or ``"unchanged"`` and
+    ``reason`` says why.  ``member_iterations[m]`` is the CG iteration after
+    which member ``m`` met the tolerance (multishift: of the shared solve, max
+    over the coordinates; separate: flow()'s CG iterations, -1 for a direct
+    solver; 0 for members with nothing to solve).  ``krylov_iterations`` is
+    the number of shared iterations (matrix-vector products per coordinate).
+    ``member_reports`` holds flow()'s own :class:`~shapeflow.flow.FlowReport`
+    of every separately solved member (``None`` elsewhere).
+    """
+
+    lams: np.ndarray
+    path: str
+    reason: str
+    lam_border: float
+    iterations: int
+    mode: str
+    scheme: str
+    update: str
+    solver: str = "none"
+    krylov_iterations: int = 0
+    member_iterations: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    shifts: int = 0
+    fallback_members: list = field(default_factory=list)
+    member_reports: list = field(default_factory=list)
+    locked: int = 0
+    degenerate_triangles: int = 0
+    boundary_vertices: int = 0
+    free_vertices: int = 0
+    notes: list = field(default_factory=list)
+    seconds: float = 0.0
+
+    def summary(self) -> str:
+        """One line: path, members, time, iterations."""
+        k = len(self.lams)
+        if self.path == "multishift":
+            how = (f"one multi-shift CG solve for {self.shifts} distinct |λ| "
+                   f"({self.krylov_iterations} shared iterations)")
+        elif self.path == "separate":
+            how = f"{k} separate solves on one shared operator ({self.solver})"
+        else:
+            how = "input returned unchanged"
+        fb = f", {len(self.fallback_members)} member(s) redone separately" if self.fallback_members else ""
+        notes = f"; {'; '.join(self.notes)}" if self.notes else ""
+        return f"{k} members: {how}{fb} ({self.reason}); {self.seconds:.3f} s{notes}"

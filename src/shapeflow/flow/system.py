@@ -1,0 +1,336 @@
+"""The flow's linear systems: the operator at given positions, one system per block, and their builder.
+
+One implicit step (docs/method.md) solves, on the free interior vertices,
+``(C + D − W) X = C V + Σ_fixed w_ij V_j`` with ``C = diag(m_i/(|λ| w_i))``
+(``D − W`` positive semi-definite), after the boundary vertices of open
+meshes, which follow their own umbrella system with factor λ_b.
+:class:`SystemBuilder` makes both; :class:`LinearSystem` is one of them
+with its solver and its couplings to the fixed vertices.
+"""
+
+from __future__ import annotations
+
+import threading
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from .. import accel
+from ..geometry.measures import signed_volume
+from ..linalg.spd import SPDSolver, choose_method
+from ..mesh import Mesh
+from ..operators.weights import assemble
+from .options import MEAN_RESTORE_FROM
+from .report import FlowReport
+
+__all__ = ["Operator", "build_operator", "LinearSystem", "row_scale", "SystemBuilder"]
+
+
+@dataclass
+class Operator:
+    """The operator of the flow at some positions: pair weights, degrees, row masses, locks, boundary umbrella."""
+
+    pattern: object         # the OperatorPattern (topology only)
+    pw: np.ndarray          # pair weights w_ij
+    deg: np.ndarray         # D_i
+    mass: np.ndarray        # m_i: the row scale (D, 2A or Blender's 4aD)
+    locked: np.ndarray
+    boundary: np.ndarray    # boundary-vertex mask
+    umbrella_pairs: np.ndarray     # (Q, 2) boundary-umbrella pairs
+    umbrella_weights: np.ndarray   # (Q,) their weights e_ij
+    umbrella_degree: np.ndarray    # Σ e_ij per vertex
+    n_bad: int
+
+
+def build_operator(mesh: Mesh, V: np.ndarray, scheme: str, blender: bool, normalized: bool) -> Operator:
+    """The :class:`Operator` of ``mesh`` at positions ``V`` (paper or Blender rules)."""
+    t = mesh.topology
+    pattern, pw, deg, ring, locked, n_bad = assemble(mesh, scheme, "blender" if blender else "relative", V)
+    edges = t.edges
+
+    def lengths(e):  # only the umbrella edges need a length (few: they lie on the boundary)
+        return np.linalg.norm(V[e[:, 0]] - V[e[:, 1]], axis=1)
+
+    if blender:
+        boundary = t.vertex_edge_count != t.vertex_corner_count
+        sel = boundary[edges[:, 0]] & boundary[edges[:, 1]] if edges.size else np.zeros(0, bool)
+        ub = edges[sel]
+        el = lengths(ub)
+        # Blender keeps the raw length as the weight of a too-short edge (its ends are locked)
+        ue = np.where(el < 1e-5, el, 1.0 / np.where(el < 1e-5, 1.0, el))
+        mass = deg if normalized else 4.0 * ring * deg
+    else:
+        boundary = t.boundary_vertex_mask.copy()
+        sel = t.boundary_edge_mask & ~locked[edges[:, 0]] & ~locked[edges[:, 1]]
+        ub = edges[sel]
+        el = lengths(ub)
+        ue = 1.0 / el  # short edges were locked above, so el > 0 here
+        mass = deg if normalized else 2.0 * ring
+    n = mesh.n_vertices
+    E = np.bincount(ub[:, 0], ue, minlength=n) + np.bincount(ub[:, 1], ue, minlength=n) if ub.size else np.zeros(n)
+    return Operator(pattern, pw, deg, mass, locked, boundary, ub, ue, E, n_bad)
+
+
+class LinearSystem:
+    """One linear system on a subset of free vertices, with its couplings.
+
+    ``c`` is the diagonal scale C of the free rows; ``coupling`` the (rows,
+    cols, weights) of terms moved to the right-hand side.  A boundary system
+    is compact: ``idx`` lists its vertices and ``local`` maps a vertex to its
+    row (-1 elsewhere); an interior system spans all n rows (``idx`` None).
+    """
+
+    def __init__(self, A, free, solver, coupling, c, idx=None, local=None):
+        self.A = A
+        self.free = free
+        self.solver = solver
+        self.coupling = coupling
+        self.c = c
+        self.idx = idx
+        self.local = local
+        self.held = np.flatnonzero(~free) if idx is None else None   # interior system: rows kept as they are
+        self._modes = None
+
+    def restore_means(self, X: np.ndarray, V: np.ndarray) -> None:
+        """Put back, in place, the exact C-weighted mean of every free part that couples to nothing fixed.
+
+        On such a part K the rows of A sum to c (A = C + D − W, and D − W has
+        zero row sums), so Σ_K c_i x_i = Σ_K c_i v_i holds exactly for the
+        solution.  A direct solver's rounding error, amplified by the
+        condition number ~|λ|, lies almost entirely in that constant mode (the
+        system is singular but for C there): at |λ| = 1e12 it moved the mean by
+        ~1e-6 of the displacement.  Restoring the mean removes it.  ``X``, ``V``
+        are the system's rows (all n for the interior, ``idx`` for the boundary).
+        """
+        if self._modes is None:
+            self._modes = self._free_parts()
+        labels, k = self._modes
+        if k == 0:
+            return
+        sel = labels >= 0
+        lab, c = labels[sel], self.c[sel]
+        cw = np.bincount(lab, c, minlength=k)
+        for q in range(X.shape[1]):
+            shift = (np.bincount(lab, c * V[sel, q], minlength=k) - np.bincount(lab, c * X[sel, q], minlength=k)) / cw
+            X[sel, q] += shift[lab]
+
+    def _free_parts(self):
+        """Labels (-1: not in such a part) and count of the free parts that couple to nothing fixed."""
+        from scipy.sparse.csgraph import connected_components
+
+        A = self.A.tocsr()
+        rows = np.flatnonzero(self.free) if self.idx is None else np.arange(A.shape[0])
+        sub = A[rows][:, rows]
+        k, lab = connected_components(sub, directed=False)
+        bad = np.zeros(k, bool)
+        r = self.coupling[0]
+        if r.size:   # parts with a term moved to the right-hand side: their mean is not conserved
+            pos = np.full(self.free.shape[0], -1)
+            pos[rows if self.idx is None else self.idx] = np.arange(rows.size)
+            bad[lab[pos[r]]] = True
+        # rows that do not sum to c (e.g. Blender's indefinite rows): no conservation to restore
+        excess = np.abs(np.asarray(sub.sum(axis=1)).ravel() - self.c[rows])
+        scale = np.asarray(abs(sub).sum(axis=1)).ravel()
+        bad[lab[excess > 1e-9 * scale]] = True
+        keep = ~bad
+        new = np.cumsum(keep) - 1
+        labels = np.full(A.shape[0], -1)
+        labels[rows] = np.where(keep[lab], new[lab], -1)
+        return labels, int(keep.sum())
+
+
+def row_scale(mass: np.ndarray, lam_abs: float, w: np.ndarray, rows: np.ndarray,
+               coord_scale: float) -> np.ndarray:
+    """C = m / (|λ| w) on ``rows`` (0 elsewhere).
+
+    A step so small that C·V would overflow (|λ| near the float limit) moves
+    nothing representable: those rows come back as inf and the caller keeps
+    them fixed.
+    """
+    c = np.zeros_like(mass)
+    with np.errstate(over="ignore", divide="ignore"):
+        c[rows] = mass[rows] / (lam_abs * w[rows])
+    limit = np.finfo(np.float64).max / (64.0 * max(coord_scale, 1.0))
+    c[c > limit] = np.inf
+    return c
+
+
+class SystemBuilder:
+    """The linear systems of one implicit step on one mesh: the flow's internal interface.
+
+    :class:`~shapeflow.flow.solver.FlowSolver` builds one per solver object
+    (``solver.systems``) and steps with it one λ at a time;
+    :func:`~shapeflow.flow.family.family` uses the same systems for many λ
+    at once.  Each method is the one place its system is defined:
+
+    * :meth:`operator` — the operator (weights, masses, locks, boundary
+      umbrella) at the input positions (cached, built once under a lock) or
+      at given ones;
+    * :meth:`interior` — the interior system for λ (``None``: nothing free);
+    * :meth:`boundary` — the boundary-umbrella system for λ_b;
+    * :meth:`solve_boundary` — positions after the boundary block's solve;
+    * :meth:`rescale_volume` — the volume-preserving rescale after a step.
+
+    Thread model: every method may run from several threads; the cached
+    operator is built under a lock, everything else is per call.
+    """
+
+    def __init__(self, mesh: Mesh, *, w: np.ndarray, scheme: str, blender: bool, normalized: bool,
+                 method: str, rtol: float, lam_border: float):
+        self.mesh = mesh
+        self.w = w
+        self.scheme = scheme
+        self.blender = blender
+        self.normalized = normalized
+        self.solver_method = method
+        self.rtol = rtol
+        self.lam_border = lam_border
+        self._op0: Operator | None = None
+        self._op0_lock = threading.Lock()
+        self._coord_scale = float(np.abs(mesh.vertices).max()) if mesh.n_vertices else 1.0
+
+    def operator(self, V: np.ndarray | None = None) -> Operator:
+        """The operator at the input positions (cached) or at ``V``."""
+        if V is None:
+            with self._op0_lock:
+                if self._op0 is None:
+                    self._op0 = build_operator(self.mesh, self.mesh.vertices, self.scheme, self.blender,
+                                                self.normalized)
+            return self._op0
+        return build_operator(self.mesh, V, self.scheme, self.blender, self.normalized)
+
+    def method(self, n_free: int, kappa: float, n_solves: int) -> str:
+        if self.solver_method == "chebyshev":
+            return "cg"   # single steps; several fixed steps go through _fixed_steps
+        if self.solver_method != "auto":
+            return self.solver_method
+        return choose_method(n_free, kappa, n_solves, self.rtol)
+
+    def interior(self, op: Operator, lam: float, n_solves: int, notes: list) -> LinearSystem | None:
+        if lam == 0.0:
+            return None
+        w = self.w
+        free = ~op.boundary & ~op.locked & (w > 0) & (op.mass > 0) & (op.deg > 0)
+        indefinite = ~op.boundary & ~op.locked & (w > 0) & ((op.mass < 0) | (op.deg < 0))
+        if indefinite.any():
+            if self.blender:
+                free |= indefinite  # Blender solves these rows too; use LU below
+            else:
+                notes.append(f"{int(indefinite.sum())} vertices with negative cotangent degree kept fixed")
+        c = row_scale(op.mass, abs(lam), w, free, self._coord_scale)
+        tiny = free & ~np.isfinite(c)
+        if tiny.any():
+            notes.append(f"{int(tiny.sum())} vertices kept fixed: |λ|·weight is so small that their step "
+                         "moves nothing representable")
+        free &= ~tiny
+        if not free.any():
+            return None
+        c[~free] = 0.0
+        pattern = op.pattern
+        p0, p1 = pattern.pairs[:, 0], pattern.pairs[:, 1]
+        fast = accel.compiled("flow", pattern.n)
+        if fast is not None:   # the same matrix in one compiled pass
+            data, diag, mixed, ratio = fast.interior_data(pattern.indices.size, pattern.pos_diag, pattern.pos_upper,
+                                                          pattern.pos_lower, pattern.pairs, free, c, op.deg, op.pw)
+            A = pattern.matrix_from_data(data)
+            n_mixed = sum(mixed)
+        else:
+            both = free[p0] & free[p1]
+            diag = np.where(free, c + op.deg, 1.0)
+            A = pattern.matrix(diag, np.where(both, -op.pw, 0.0))
+            n_mixed = -1
+            ratio = float(np.max(np.abs(op.deg[free] / np.where(c[free] != 0, c[free], 1.0))))
+        # terms of free rows on non-free columns move to the right-hand side
+        if n_mixed and fast is not None:
+            coupling = fast.interior_coupling(pattern.pairs, free, op.pw, mixed)
+        elif n_mixed:
+            a = free[p0] & ~free[p1]
+            b = free[p1] & ~free[p0]
+            coupling = (np.concatenate([p0[a], p1[b]]), np.concatenate([p1[a], p0[b]]),
+                        np.concatenate([op.pw[a], op.pw[b]]))
+        else:
+            coupling = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+        kappa = 1.0 + 2.0 * ratio
+        method = "lu" if (self.blender and indefinite.any()) else self.method(int(free.sum()), kappa, n_solves)
+        return LinearSystem(A, free, SPDSolver(A, method, rtol=self.rtol, diagonal=diag), coupling, c)
+
+    def boundary(self, op: Operator, lam_b: float) -> LinearSystem | None:
+        if lam_b == 0.0 or op.umbrella_pairs.size == 0:
+            return None
+        w = self.w
+        free = op.boundary & ~op.locked & (w > 0) & (op.umbrella_degree > 0)
+        k_b = 2.0 if self.blender else 1.0
+        c_all = row_scale(op.umbrella_degree, k_b * abs(lam_b), w, free, self._coord_scale)
+        free &= np.isfinite(c_all)
+        if not free.any():
+            return None
+        idx = np.flatnonzero(free)
+        local = np.full(self.mesh.n_vertices, -1)
+        local[idx] = np.arange(idx.size)
+        c = c_all[idx]
+        q0, q1 = op.umbrella_pairs[:, 0], op.umbrella_pairs[:, 1]
+        both = free[q0] & free[q1]
+        rows = np.concatenate([local[q0[both]], local[q1[both]], np.arange(idx.size)])
+        cols = np.concatenate([local[q1[both]], local[q0[both]], np.arange(idx.size)])
+        vals = np.concatenate([-op.umbrella_weights[both], -op.umbrella_weights[both], c + op.umbrella_degree[idx]])
+        A = sp.csr_matrix((vals, (rows, cols)), shape=(idx.size, idx.size))
+        # neighbours that are not free: their current position enters the right-hand side,
+        # except (Blender) a locked neighbour, whose term Blender leaves out of the row
+        a = free[q0] & ~free[q1]
+        b = free[q1] & ~free[q0]
+        r = np.concatenate([q0[a], q1[b]])
+        s = np.concatenate([q1[a], q0[b]])
+        e = np.concatenate([op.umbrella_weights[a], op.umbrella_weights[b]])
+        if self.blender:
+            keep = ~op.locked[s]
+            r, s, e = r[keep], s[keep], e[keep]
+        method = "lu" if idx.size < 20000 else "cg"
+        return LinearSystem(A, free, SPDSolver(A, method, rtol=self.rtol), (r, s, e), c, idx, local)
+
+    def solve_boundary(self, V: np.ndarray, boundary_sys: LinearSystem | None, *, copy: bool = True) -> np.ndarray:
+        """Positions after the boundary block's solve (a copy of V elsewhere).
+
+        With ``copy=False`` and no boundary block, V itself (not to be written).
+        """
+        if boundary_sys is None and not copy:
+            return V
+        X = V.copy()
+        if boundary_sys is not None:
+            r, s, e = boundary_sys.coupling
+            rhs = boundary_sys.c[:, None] * V[boundary_sys.idx]
+            if r.size:
+                lr = boundary_sys.local[r]
+                for k in range(3):
+                    rhs[:, k] += np.bincount(lr, e * V[s, k], minlength=boundary_sys.idx.size)
+            Xb = boundary_sys.solver.solve(rhs, V[boundary_sys.idx], overwrite_b=True)
+            if abs(self.lam_border) >= MEAN_RESTORE_FROM:
+                boundary_sys.restore_means(Xb, V[boundary_sys.idx])
+            X[boundary_sys.idx] = Xb
+        return X
+
+    def rescale_volume(self, V_before: np.ndarray, V_after: np.ndarray, axes: np.ndarray,
+                         center0: np.ndarray, report: FlowReport) -> np.ndarray:
+        mesh = self.mesh
+        k = int(axes.sum())
+        if self.blender:
+            vb = abs(signed_volume(mesh, V_before, center0))
+            va = abs(signed_volume(mesh, V_after, center0))
+            if va == 0.0:
+                return V_after
+            beta = (vb / va) ** (1.0 / 3.0)
+            c = center0
+        else:
+            c = V_after.mean(axis=0)
+            vb = signed_volume(mesh, V_before, c)
+            va = signed_volume(mesh, V_after, c)
+            # a volume at rounding level (flat or open surfaces) carries no information
+            tiny = 1e-12 * float(np.linalg.norm(np.ptp(V_before, axis=0))) ** 3
+            if abs(va) <= tiny or abs(vb) <= tiny or (va > 0) != (vb > 0):
+                report.notes.append("volume preservation skipped (volume is zero or changed sign)")
+                return V_after
+            beta = (vb / va) ** (1.0 / k)
+        report.volume_scale.append(float(beta))
+        out = V_after.copy()
+        out[:, axes] = c[axes] + beta * (V_after[:, axes] - c[axes])
+        return out

@@ -1,0 +1,78 @@
+"""Reading and writing meshes: OBJ, PLY (ASCII and binary) and OFF.
+
+Formats
+-------
+The format is chosen from the file extension (case-insensitive) through the
+registry :data:`FORMATS` (extension -> :class:`MeshFormat`, as in meshio), or
+given explicitly with ``format=``.
+
+========  ==========================================  =====================
+ext       read                                        write
+========  ==========================================  =====================
+``.obj``  ``v`` and ``f`` lines (see below)           ``v`` / ``f`` lines
+``.ply``  ASCII, binary little- and big-endian        binary little-endian
+                                                      (``binary=False``:
+                                                      ASCII)
+``.off``  ``OFF`` and ``[ST][C][N]OFF`` (ASCII)       ``OFF``
+========  ==========================================  =====================
+
+Every reader keeps the face structure exactly as written: faces are never
+triangulated, face order and corner order are kept, triangles, quads and
+n-gons may be interleaved in any order, and every vertex is kept in file order
+(unreferenced ones included).  Writers print floats with Python's shortest
+round-trip ``repr``, so text round trips are bit-exact; binary PLY stores
+float64.
+
+Vertex attributes (e.g. the ``"weight"`` attribute) are kept by PLY only:
+every 1-D attribute is written as a ``double`` vertex property of the same
+name, and every scalar vertex property other than ``x y z`` is read back as a
+float64 attribute.  OBJ and OFF have no place for them: :func:`save` drops the
+attributes silently (as it does multi-column attributes for PLY).  Weights can
+also travel in side files (``.npy`` or ``.txt``, one number a line) with
+:func:`load_weights` and :func:`save_weights`.
+
+OBJ details: ``v x y z [w]`` and ``v x y z r g b [a]`` (x y z are used);
+``f`` (and the old ``fo``) with ``a``, ``a/b``, ``a//c`` and ``a/b/c`` corners
+and negative (relative) indices; ``#`` comments, blank lines and backslash line
+continuations; every other tag (``vt vn vp o g s usemtl mtllib l p``,
+OpenSubdiv's ``t crease ...``, ...) is skipped.  A file without any ``v`` line
+is an error.  OFF details: ``#`` comments, the counts on the header line or the
+next, ``k i1 .. ik [colour]`` faces, extra per-vertex values (colours,
+normals, texture coordinates) ignored; binary OFF and 4D/nD OFF are not
+supported.  ASCII PLY is read one element per line.
+
+Errors
+------
+Anything wrong with a file raises :class:`~shapeflow.errors.MeshError` whose
+message starts with the file name, then where: ``line N`` for text formats,
+the element for binary PLY (``face 17``).  A missing or unreadable file is a
+MeshError too (the OSError, e.g. FileNotFoundError, is named in the message
+and chained as ``__cause__``).
+
+Saving is atomic: the data go to a temporary file in the target directory,
+which is flushed, fsync'ed and renamed onto the target; on any error the
+temporary file is removed and an existing target is left untouched.
+
+Parsing is vectorised: the text is tokenised with numpy, tokens are grouped
+by line, and numbers are converted in bulk (90k vertices / 180k faces load in
+about 0.2 s).  Binary PLY lists of mixed sizes need one light Python loop over
+the records to find their boundaries; uniform lists (all triangles, all
+quads) are read as strided arrays.
+"""
+
+
+from .atomic import atomic_write, output_target
+from .obj import read_obj, write_obj
+from .off import read_off, write_off
+from .ply import read_ply, write_ply
+from .registry import FORMATS, MeshFormat, load, register_format, save
+from .weights import WEIGHT_EXTENSIONS, load_weights, save_weights
+
+__all__ = [
+    "load", "save", "load_weights", "save_weights", "atomic_write", "output_target",
+    "MeshFormat", "FORMATS", "register_format", "WEIGHT_EXTENSIONS",
+]
+
+register_format(MeshFormat("OBJ", (".obj",), read_obj, write_obj))
+register_format(MeshFormat("OFF", (".off",), read_off, write_off))
+register_format(MeshFormat("PLY", (".ply",), read_ply, write_ply, attributes=True, binary=True))

@@ -1,0 +1,484 @@
+"""Stanford PLY (ASCII and binary, either byte order), with per-vertex attributes."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from typing import BinaryIO
+
+import numpy as np
+
+from ..errors import MeshError
+from ..mesh import Mesh
+from .text import Text, build_mesh, ranges, strip_bom, write_faces_text, write_rows
+
+__all__ = ["read_ply", "write_ply"]
+
+
+_PLY_TYPES = {
+    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
+    "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
+    "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
+    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
+}
+_PLY_FORMATS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"}
+_END_HEADER_RE = re.compile(rb"^end_header[ \t]*(?:\r?\n|$)", re.MULTILINE)
+_FACE_LISTS = ("vertex_indices", "vertex_index")
+
+
+@dataclass
+class _Prop:
+    name: str
+    dtype: np.dtype  # item type (with byte order in binary files)
+    count_dtype: np.dtype | None = None  # list length type; None for a scalar
+
+    @property
+    def is_list(self) -> bool:
+        return self.count_dtype is not None
+
+
+@dataclass
+class _Element:
+    name: str
+    count: int
+    line: int
+    props: list
+
+
+def _parse_ply_header(header: str, name: str) -> tuple[str | None, list[_Element]]:
+    order = False
+    elements: list[_Element] = []
+    seen_format = False
+    for ln, line in enumerate(header.split("\n"), start=1):
+        words = line.split()
+        if ln == 1:
+            if words != ["ply"]:
+                raise MeshError(f"{name}: line 1: not a PLY file (the first line must be 'ply')")
+            continue
+        if not words or words[0] in ("comment", "obj_info"):
+            continue
+        key = words[0]
+        if not line.isascii():
+            raise MeshError(f"{name}: line {ln}: non-ASCII text outside a comment in the PLY header")
+        err = lambda msg: MeshError(f"{name}: line {ln}: {msg}")  # noqa: E731
+        if key == "format":
+            if len(words) != 3 or words[1] not in _PLY_FORMATS:
+                raise err(f"bad format line {line.strip()!r}; expected 'format ascii|binary_little_endian|"
+                          "binary_big_endian 1.0'")
+            order, seen_format = _PLY_FORMATS[words[1]], True
+        elif key == "element":
+            if len(words) != 3 or not words[2].isascii() or not words[2].isdigit():
+                raise err(f"bad element line {line.strip()!r}; expected 'element NAME COUNT'")
+            twin = next((el for el in elements if el.name == words[1]), None)
+            if twin is not None:
+                raise err(f"a second '{words[1]}' element (the first is on line {twin.line}); "
+                          "which one holds the mesh is ambiguous")
+            elements.append(_Element(words[1], int(words[2]), ln, []))
+        elif key == "property":
+            if not elements:
+                raise err("property before any element")
+            if len(words) >= 3 and any(p.name == words[-1] for p in elements[-1].props):
+                raise err(f"property '{words[-1]}' of element '{elements[-1].name}' is declared twice; "
+                          "which one holds the values is ambiguous")
+            if len(words) == 3 and words[1] in _PLY_TYPES:
+                elements[-1].props.append(_Prop(words[2], np.dtype(_PLY_TYPES[words[1]])))
+            elif (len(words) == 5 and words[1] == "list" and words[2] in _PLY_TYPES
+                  and words[3] in _PLY_TYPES and _PLY_TYPES[words[2]][0] in "iu"):
+                elements[-1].props.append(
+                    _Prop(words[4], np.dtype(_PLY_TYPES[words[3]]), np.dtype(_PLY_TYPES[words[2]])))
+            else:
+                raise err(f"bad property line {line.strip()!r}")
+        else:
+            raise err(f"unknown header keyword {key!r}")
+    if not seen_format:
+        raise MeshError(f"{name}: PLY header has no 'format' line")
+    if order:
+        for el in elements:
+            for p in el.props:
+                p.dtype = p.dtype.newbyteorder(order)
+                if p.count_dtype is not None:
+                    p.count_dtype = p.count_dtype.newbyteorder(order)
+    return order, elements
+
+
+def _gather(buf: np.ndarray, offsets: np.ndarray, dtype: np.dtype) -> np.ndarray:
+    """Values of ``dtype`` at byte ``offsets`` of ``buf`` (uint8)."""
+    if offsets.size == 0:
+        return np.zeros(0, dtype=dtype)
+    raw = buf[offsets[:, None] + np.arange(dtype.itemsize)]
+    return np.ascontiguousarray(raw).view(dtype).reshape(-1)
+
+
+def _read_binary_element(buf: bytes, arr: np.ndarray, pos: int, el: _Element, name: str):
+    """Read element ``el`` at byte ``pos``: ({prop: values or (counts, items)}, end)."""
+    n, L = el.count, len(buf)
+    props = el.props
+    trunc = lambda i: MeshError(f"{name}: {el.name} {i}: file is truncated "  # noqa: E731
+                                f"(header says {n} {el.name} elements)")
+    if n == 0:
+        return {p.name: (np.zeros(0, np.int64), np.zeros(0, p.dtype)) if p.is_list else np.zeros(0, p.dtype)
+                for p in props}, pos
+    # never allocate from the declared count more than the bytes left can hold: every record
+    # takes at least its scalars and its lists' counts
+    least = sum(p.count_dtype.itemsize if p.is_list else p.dtype.itemsize for p in props)
+    if least and n > (L - pos) // least:
+        raise trunc(max(L - pos, 0) // least)
+    if not any(p.is_list for p in props):
+        dt = np.dtype([(f"p{i}", p.dtype) for i, p in enumerate(props)])   # n records fit: checked above
+        rec = np.frombuffer(buf, dtype=dt, count=n, offset=pos)
+        return {p.name: rec[f"p{i}"] for i, p in enumerate(props)}, pos + n * dt.itemsize
+    counts = _binary_list_counts(buf, pos, el, name, trunc)
+    # per-record byte offsets of every property, vectorised
+    fixed = sum(p.dtype.itemsize for p in props if not p.is_list)
+    sizes = np.full(n, fixed, dtype=np.int64)
+    lists = [p for p in props if p.is_list]
+    for j, p in enumerate(lists):
+        sizes += p.count_dtype.itemsize + counts[:, j] * p.dtype.itemsize
+    ends = pos + np.cumsum(sizes)
+    if ends[-1] > L:
+        raise trunc(int(np.searchsorted(ends, L, side="right")))
+    cur = ends - sizes
+    out = {}
+    j = 0
+    for p in props:
+        if not p.is_list:
+            out[p.name] = _gather(arr, cur, p.dtype)
+            cur = cur + p.dtype.itemsize
+        else:
+            c = counts[:, j]
+            data_at = cur + p.count_dtype.itemsize
+            k = int(c[0])
+            stride = int(data_at[1] - data_at[0]) if n > 1 else 0
+            if (c == k).all() and (n == 1 or (np.diff(data_at) == stride).all()):
+                # same length, evenly spaced (all triangles...): one strided view
+                items = np.ndarray((n, k), dtype=p.dtype, buffer=buf, offset=int(data_at[0]),
+                                   strides=(stride, p.dtype.itemsize)).reshape(-1)
+            else:
+                items = _gather(arr, _list_item_offsets(data_at, c, p.dtype.itemsize), p.dtype)
+            out[p.name] = (c, items)
+            cur = data_at + c * p.dtype.itemsize
+            j += 1
+    return out, int(ends[-1])
+
+
+def _list_item_offsets(data_at: np.ndarray, c: np.ndarray, itemsize: int) -> np.ndarray:
+    """Byte offset of every item of lists starting at ``data_at`` with lengths ``c``."""
+    within = np.arange(int(c.sum()), dtype=np.int64) - np.repeat(np.cumsum(c) - c, c)
+    return np.repeat(data_at, c) + within * itemsize
+
+
+def _binary_list_counts(buf: bytes, pos: int, el: _Element, name: str, trunc) -> np.ndarray:
+    """(n, n_lists) list lengths of a binary element (records have variable size)."""
+    n, L = el.count, len(buf)
+    props = el.props
+    lists = [p for p in props if p.is_list]
+    # fast path: one list and every record as long as the first (all triangles, all quads...)
+    if len(lists) == 1:
+        li = props.index(lists[0])
+        p = lists[0]
+        pre = sum(q.dtype.itemsize for q in props[:li])
+        post = sum(q.dtype.itemsize for q in props[li + 1:])
+        csz = p.count_dtype.itemsize
+        if pos + pre + csz > L:
+            raise trunc(0)
+        k0 = int(np.frombuffer(buf, p.count_dtype, 1, pos + pre)[0])
+        rec = pre + csz + k0 * p.dtype.itemsize + post
+        if k0 >= 0 and pos + n * rec <= L:
+            c = np.ndarray((n,), dtype=p.count_dtype, buffer=buf, offset=pos + pre, strides=(rec,))
+            if (c == k0).all():
+                return np.full((n, 1), k0, dtype=np.int64)
+    # general case: walk the records (a light Python loop; record boundaries are sequential)
+    steps = []  # ("skip", nbytes) or ("list", count_size, signed, byteorder, item_size)
+    for q in props:
+        if not q.is_list:
+            if steps and steps[-1][0] == "skip":
+                steps[-1] = ("skip", steps[-1][1] + q.dtype.itemsize)
+            else:
+                steps.append(("skip", q.dtype.itemsize))
+        else:
+            order = "big" if q.count_dtype.byteorder == ">" else "little"
+            steps.append(("list", q.count_dtype.itemsize, q.count_dtype.kind == "i", order, q.dtype.itemsize))
+    counts = np.empty((n, len(lists)), dtype=np.int64)
+    from_bytes = int.from_bytes
+    if len(steps) <= 3 and sum(s[0] == "list" for s in steps) == 1:
+        # the usual face layout: [scalars] list [scalars]
+        pre = steps[0][1] if steps[0][0] == "skip" else 0
+        lst = steps[1] if pre else steps[0]
+        post = steps[-1][1] if steps[-1][0] == "skip" and steps[-1] is not steps[0] else 0
+        _, csz, signed, order, isz = lst
+        ks = [0] * n
+        p_ = pos
+        if csz == 1 and not signed:
+            for i in range(n):
+                q = p_ + pre
+                if q >= L:  # record i - 1 overran the end, or record i is missing
+                    raise trunc(i - 1 if p_ > L else i)
+                k = ks[i] = buf[q]
+                p_ = q + 1 + k * isz + post
+        else:
+            for i in range(n):
+                q = p_ + pre
+                if q + csz > L:
+                    raise trunc(i - 1 if p_ > L else i)
+                k = ks[i] = from_bytes(buf[q:q + csz], order, signed=signed)
+                if k < 0:
+                    raise MeshError(f"{name}: {el.name} {i}: negative list length {k}")
+                p_ = q + csz + k * isz + post
+        counts[:, 0] = ks
+        return counts
+    p_ = pos
+    for i in range(n):
+        if p_ > L:
+            raise trunc(i - 1)
+        j = 0
+        for st in steps:
+            if st[0] == "skip":
+                p_ += st[1]
+            else:
+                _, csz, signed, order, isz = st
+                if p_ + csz > L:
+                    raise trunc(i)
+                k = from_bytes(buf[p_:p_ + csz], order, signed=signed)
+                if k < 0:
+                    raise MeshError(f"{name}: {el.name} {i}: negative list length {k}")
+                counts[i, j] = k
+                j += 1
+                p_ += csz + k * isz
+    return counts
+
+
+def _read_ascii_element(txt: Text, r0: int, el: _Element, name: str):
+    """Read element ``el`` from records r0 .. r0 + count - 1 of the ASCII body."""
+    n = el.count
+    if r0 + n > txt.n_records:
+        raise txt.error_at_end(f"file ends after {txt.n_records - r0} of {n} '{el.name}' lines "
+                               "(truncated, or wrong counts in the header)")
+    recs = np.arange(r0, r0 + n)
+    first = txt.rec_first[recs]
+    have = txt.rec_count[recs]
+    props = el.props
+    out = {}
+    if n == 0:
+        return {p.name: (np.zeros(0, np.int64), np.zeros(0, np.float64)) if p.is_list else np.zeros(0)
+                for p in props}
+    if not any(p.is_list for p in props):
+        k = len(props)
+        bad = np.flatnonzero(have != k)
+        if bad.size:
+            i = int(bad[0])
+            raise txt.error(first[i], f"'{el.name}' line has {int(have[i])} values, expected {k}")
+        vals = txt.parse(ranges(first, have), np.float64, f"{el.name} value").reshape(n, k)
+        return {p.name: vals[:, i] for i, p in enumerate(props)}
+    stop = first + have
+    cur = first.copy()
+
+    def need(what):
+        bad = np.flatnonzero(cur >= stop)
+        if bad.size:
+            i = int(bad[0])
+            raise txt.error(first[i], f"'{el.name}' line has too few values (no {what})")
+
+    for p in props:
+        need(p.name)
+        if not p.is_list:
+            out[p.name] = txt.parse(cur, np.float64, f"'{p.name}' value")
+            cur = cur + 1
+        else:
+            c = txt.parse(cur, np.int64, f"'{p.name}' list length")
+            neg = np.flatnonzero(c < 0)
+            if neg.size:
+                raise txt.error(cur[int(neg[0])], f"negative list length {int(c[neg[0]])}")
+            over = np.flatnonzero(cur + 1 + c > stop)
+            if over.size:
+                i = int(over[0])
+                raise txt.error(first[i], f"'{el.name}' line is too short: '{p.name}' says {int(c[i])} "
+                                f"values, {int(stop[i] - cur[i] - 1)} follow")
+            kind = np.int64 if p.dtype.kind in "iu" else np.float64
+            out[p.name] = (c, txt.parse(ranges(cur + 1, c), kind, f"'{p.name}' value"))
+            cur = cur + 1 + c
+    extra = np.flatnonzero(cur != stop)
+    if extra.size:
+        i = int(extra[0])
+        raise txt.error(first[i], f"'{el.name}' line has {int(stop[i] - cur[i])} values too many")
+    return out
+
+
+def read_ply(data: bytes, name: str) -> Mesh:
+    if not data.strip():
+        raise MeshError(f"{name}: empty file")
+    data = strip_bom(data)   # the header is text even when the body is binary
+    first_line = data.split(b"\n", 1)[0].strip()
+    if first_line != b"ply":
+        raise MeshError(f"{name}: line 1: not a PLY file (the first line must be 'ply')")
+    m = _END_HEADER_RE.search(data)
+    if not m:
+        raise MeshError(f"{name}: PLY header has no 'end_header' line (truncated or not a PLY file)")
+    try:   # comments and obj_info may hold any UTF-8 text; keywords are checked to be ASCII
+        header = data[:m.start()].decode("utf-8").replace("\r", "")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        raise MeshError(f"{name}: line {line}: PLY header is not UTF-8 text") from None
+    order, elements = _parse_ply_header(header, name)
+    body = data[m.end():]
+    found: dict[str, dict] = {}
+    if order is None:  # ASCII
+        if b"\x00" in body:
+            line = data.count(b"\n", 0, m.end() + body.find(b"\x00")) + 1
+            raise MeshError(f"{name}: line {line}: binary data (NUL byte) in an ASCII PLY file")
+        txt = Text(body, name, line_offset=data.count(b"\n", 0, m.end()))
+        r = 0
+        for el in elements:
+            values = _read_ascii_element(txt, r, el, name)
+            found.setdefault(el.name, values)
+            r += el.count
+        if r < txt.n_records:
+            raise txt.error(txt.rec_first[r], "unexpected data after the last element "
+                            "(wrong counts in the header?)")
+        vloc = lambda i: f"line {txt.lineno(txt.rec_first[_first_record(elements, 'vertex') + i])}"  # noqa: E731
+        floc = lambda f: f"line {txt.lineno(txt.rec_first[_first_record(elements, 'face') + f])}"  # noqa: E731
+    else:
+        arr = np.frombuffer(body, dtype=np.uint8)
+        pos = 0
+        for el in elements:
+            values, pos = _read_binary_element(body, arr, pos, el, name)
+            found.setdefault(el.name, values)
+        if pos < len(body) and body[pos:].strip():
+            last = elements[-1].name if elements else "header"
+            raise MeshError(f"{name}: {len(body) - pos} bytes of unexpected data after the last element "
+                            f"('{last}'); wrong counts in the header?")
+        vloc = floc = None  # messages name "vertex i" / "face f" already
+
+    vel = next((el for el in elements if el.name == "vertex"), None)
+    if vel is None:
+        raise MeshError(f"{name}: PLY file has no 'vertex' element")
+    vals = found["vertex"]
+    scal = {p.name: p for p in vel.props if not p.is_list}
+    for axis in "xyz":
+        if axis not in scal:
+            raise MeshError(f"{name}: line {vel.line}: the vertex element has no scalar '{axis}' property")
+    vertices = np.column_stack([np.asarray(vals[a], dtype=np.float64) for a in "xyz"])
+    # attributes keep the file's type (ASCII integers are parsed as float64, checked, then cast back)
+    attributes = {}
+    for p in vel.props:
+        if p.is_list or p.name in ("x", "y", "z"):
+            continue
+        v = np.asarray(vals[p.name])
+        dt = p.dtype.newbyteorder("=")
+        if dt.kind in "iu" and v.dtype.kind == "f":
+            info = np.iinfo(dt)
+            bad = np.flatnonzero((v != np.rint(v)) | (v < info.min) | (v > info.max))
+            if bad.size:
+                i = int(bad[0])
+                raise MeshError(_at(name, vloc(i) if vloc else f"vertex {i}",
+                                    f"property '{p.name}' is {np.dtype(dt).name} but has the value {v[i]!r}"))
+        # ASCII floats keep the text's precision (parsed as float64); everything else its declared type
+        attributes[p.name] = v if (dt.kind == "f" and v.dtype == np.float64) else v.astype(dt)
+    nv = vertices.shape[0]
+    fel = next((el for el in elements if el.name == "face"), None)
+    if fel is None:
+        sizes, idx = np.zeros(0, np.int64), np.zeros(0, np.int64)
+    else:
+        lists = [p for p in fel.props if p.is_list]
+        named = [p for p in lists if p.name in _FACE_LISTS]
+        plist = named[0] if named else (lists[0] if len(lists) == 1 else None)
+        if plist is None:
+            raise MeshError(f"{name}: line {fel.line}: the face element has no 'vertex_indices' list")
+        if plist.dtype.kind not in "iu":
+            raise MeshError(f"{name}: line {fel.line}: face '{plist.name}' must be an integer list")
+        sizes, idx = found["face"][plist.name]
+        sizes = np.asarray(sizes, dtype=np.int64)
+        idx = np.asarray(idx, dtype=np.int64)
+        where = floc if floc is not None else (lambda f: None)
+        small = np.flatnonzero(sizes < 3)
+        if small.size:
+            f = int(small[0])
+            raise MeshError(_at(name, where(f), f"face {f} has {int(sizes[f])} corners; a face needs at least 3"))
+        bad = np.flatnonzero((idx < 0) | (idx >= nv))
+        if bad.size:
+            c = int(bad[0])
+            f = int(np.searchsorted(np.cumsum(sizes), c, side="right"))
+            raise MeshError(_at(name, where(f), f"face {f} refers to vertex {int(idx[c])}, "
+                                f"out of range [0, {nv})"))
+    return build_mesh(name, vertices, sizes, idx, attributes=attributes, where_vertex=vloc, where_face=floc)
+
+
+def _at(name: str, where: str | None, msg: str) -> str:
+    return f"{name}: {where}: {msg}" if where else f"{name}: {msg}"
+
+
+def _first_record(elements: list[_Element], which: str) -> int:
+    r = 0
+    for el in elements:
+        if el.name == which:
+            return r
+        r += el.count
+    return r  # pragma: no cover
+
+
+def _ply_attributes(mesh: Mesh) -> dict[str, np.ndarray]:
+    """The attributes PLY can store: 1-D ones with a name that is one word."""
+    out = {}
+    for key, values in mesh.attributes.items():
+        if values.ndim != 1:
+            continue  # multi-column attributes are not written (documented)
+        if not key or any(ch.isspace() for ch in key) or not key.isascii() or key in ("x", "y", "z"):
+            raise MeshError(f"attribute name {key!r} cannot be a PLY property name")
+        out[key] = values
+    return out
+
+
+#: NumPy type -> PLY type name: _PLY_TYPES read backwards, the classic names (char, uchar, ...) winning
+_PLY_NAMES = {code: name for name, code in reversed(list(_PLY_TYPES.items()))}
+
+
+def _ply_type(values: np.ndarray) -> np.dtype:
+    dt = values.dtype
+    if dt.kind in "iu" and dt.itemsize == 8:
+        fits = values.size == 0 or (int(values.min()) >= -2**31 and int(values.max()) < 2**31)
+        return np.dtype("i4") if fits else np.dtype("f8")
+    key = f"{dt.kind}{dt.itemsize}"
+    return np.dtype(key) if key in _PLY_NAMES else np.dtype("f8")
+
+
+def write_ply(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None, byteorder: str = "<") -> None:
+    binary = True if binary is None else bool(binary)
+    attrs = _ply_attributes(mesh)
+    types = {k: _ply_type(v) for k, v in attrs.items()}
+    sizes = mesh.face_sizes
+    count_type = "uchar" if sizes.size == 0 or int(sizes.max()) <= 255 else "int"
+    fmt = ("binary_little_endian" if byteorder == "<" else "binary_big_endian") if binary else "ascii"
+    head = ["ply", f"format {fmt} 1.0", "comment written by shapeflow",
+            f"element vertex {mesh.n_vertices}",
+            "property double x", "property double y", "property double z"]
+    head += [f"property {_PLY_NAMES[f'{types[k].kind}{types[k].itemsize}']} {k}" for k in attrs]
+    head += [f"element face {mesh.n_faces}", f"property list {count_type} int vertex_indices", "end_header"]
+    f.write(("\n".join(head) + "\n").encode("ascii"))
+    if not binary:   # integers exactly as %d (every PLY integer type fits a double exactly)
+        columns = np.column_stack([mesh.vertices] + [v.astype(np.float64)[:, None] for v in attrs.values()])
+        fmts = ["%r"] * 3 + ["%d" if types[k].kind in "iu" else "%r" for k in attrs]
+        write_rows(f, " ".join(fmts) + "\n", columns)
+        write_faces_text(f, mesh, "", 0, with_size=True)
+        return
+    rec = np.empty(mesh.n_vertices, dtype=[("xyz", byteorder + "f8", (3,))]
+                   + [(f"a{i}", types[k].newbyteorder(byteorder)) for i, k in enumerate(attrs)])
+    rec["xyz"] = mesh.vertices
+    for i, (k, v) in enumerate(attrs.items()):
+        rec[f"a{i}"] = v
+    f.write(rec.tobytes())
+    cdt = np.dtype(byteorder + ("u1" if count_type == "uchar" else "i4"))
+    idt = np.dtype(byteorder + "i4")
+    offsets, indices = mesh.face_offsets, mesh.face_indices
+    chunk = 1 << 18
+    for f0 in range(0, sizes.size, chunk):
+        f1 = min(f0 + chunk, sizes.size)
+        s = sizes[f0:f1]
+        c0, c1 = int(offsets[f0]), int(offsets[f1])
+        m, ncorner = f1 - f0, c1 - c0
+        csz, isz = cdt.itemsize, idt.itemsize
+        out = np.empty(m * csz + ncorner * isz, dtype=np.uint8)
+        face_at = (offsets[f0:f1] - c0) * isz + np.arange(m) * csz
+        out[face_at[:, None] + np.arange(csz)] = s.astype(cdt).view(np.uint8).reshape(m, csz)
+        corner_face = np.repeat(np.arange(m), s)
+        corner_at = np.arange(ncorner) * isz + (corner_face + 1) * csz
+        out[corner_at[:, None] + np.arange(isz)] = indices[c0:c1].astype(idt).view(np.uint8).reshape(ncorner, isz)
+        f.write(out.tobytes())

@@ -1,0 +1,115 @@
+"""The format registry and the two entry points, :func:`load` and :func:`save`."""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Callable
+
+from .. import params
+from ..errors import MeshError, ParameterError
+from ..mesh import Mesh
+from .atomic import as_path, atomic_write, read_bytes
+
+__all__ = ["Reader", "Writer", "MeshFormat", "FORMATS", "register_format", "as_path", "format_for", "load", "save"]
+
+
+Reader = Callable[[bytes, str], Mesh]
+Writer = Callable[..., None]  # writer(f: BinaryIO, mesh: Mesh, *, binary: bool | None)
+
+
+@dataclass(frozen=True)
+class MeshFormat:
+    """One mesh file format of the registry.
+
+    ``reader(data, name)`` turns the file's bytes into a :class:`Mesh` and
+    raises :class:`MeshError` naming ``name``; ``writer(f, mesh, binary=...)``
+    writes to a binary file object (``binary=None`` means the format's
+    default).
+    """
+
+    name: str
+    extensions: tuple[str, ...]
+    reader: Reader
+    writer: Writer
+    attributes: bool = False  #: stores per-vertex attributes
+    binary: bool = False  #: has a binary variant
+
+
+#: extension (lower case, with the dot) -> format
+FORMATS: dict[str, MeshFormat] = {}
+
+
+def register_format(fmt: MeshFormat) -> None:
+    """Add (or replace) a format for each of its extensions."""
+    for ext in fmt.extensions:
+        ext = ext.lower()
+        FORMATS[ext if ext.startswith(".") else "." + ext] = fmt
+
+
+
+
+def format_for(name: str, format: str | None) -> MeshFormat:
+    if format is not None and not isinstance(format, str):
+        raise ParameterError(f"format must be a string such as 'ply' or '.obj', got {format!r}")
+    if format is not None:
+        ext = format.lower()
+        ext = ext if ext.startswith(".") else "." + ext
+    else:
+        ext = os.path.splitext(name)[1].lower()
+    fmt = FORMATS.get(ext)
+    if fmt is None:
+        what = f"format '{format}'" if format is not None else (
+            f"extension '{ext}'" if ext else "file without an extension")
+        raise MeshError(f"{name}: unknown mesh {what}; supported: {', '.join(sorted(FORMATS))}")
+    return fmt
+
+
+# --------------------------------------------------------------------------
+# public API
+# --------------------------------------------------------------------------
+
+def load(path, *, format: str | None = None) -> Mesh:
+    """Read a mesh file (format from the extension, or ``format="ply"`` etc.).
+
+    Raises
+    ------
+    MeshError
+        The file is missing, unreadable or malformed; the message names the
+        file and the line (text) or element (binary PLY).
+    """
+    name = as_path(path)
+    fmt = format_for(name, format)
+    data = read_bytes(name)
+    try:
+        return fmt.reader(data, name)
+    except MeshError:
+        raise
+    except (ValueError, IndexError, TypeError, KeyError, OverflowError) as exc:  # safety net
+        raise MeshError(f"{name}: malformed {fmt.name} file ({type(exc).__name__}: {exc})") from exc
+
+
+def save(path, mesh: Mesh, *, format: str | None = None, binary: bool | None = None, force: bool = False) -> None:
+    """Write ``mesh`` atomically (format from the extension, or ``format=``).
+
+    ``binary`` applies to PLY (default True: binary little-endian; False:
+    ASCII); asking for a binary OBJ or OFF is an error.  OBJ and OFF drop the
+    mesh's attributes.  A path that cannot be written (no such folder,
+    read-only file without ``force``, disk full...) raises
+    :class:`~shapeflow.errors.OutputError` (a ``ValueError`` and an
+    ``OSError``) naming ``path``; nothing is left behind and an existing file
+    is not touched.  A symbolic link is followed: its target is replaced.
+    """
+    if not isinstance(mesh, Mesh):
+        raise ParameterError(f"save() needs a shapeflow.Mesh, got {type(mesh).__name__}")
+    if binary is not None:
+        binary = params.flag("binary", binary)
+    force = params.flag("force", force)
+    name = as_path(path)
+    fmt = format_for(name, format)
+    if binary and not fmt.binary:
+        raise MeshError(f"{name}: {fmt.name} has no binary variant")
+    try:
+        atomic_write(name, lambda f: fmt.writer(f, mesh, binary=binary), force=force)
+    except MeshError as exc:  # writers' messages do not know the file name
+        raise MeshError(f"{name}: {exc}") from None

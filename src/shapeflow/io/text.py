@@ -1,0 +1,201 @@
+"""Vectorised text tokenising and writing shared by the text formats (OBJ, OFF, ASCII PLY)."""
+
+from __future__ import annotations
+
+import re
+import warnings
+from functools import lru_cache
+from typing import BinaryIO
+
+import numpy as np
+
+from ..errors import MeshError
+from ..mesh import Mesh
+
+__all__ = ["WHITESPACE", "COMMENT_RE", "CONTINUATION_RE", "NUMBER_RE", "fromstring", "ranges", "Text", "strip_bom",
+           "text_data", "build_mesh", "face_template", "write_rows", "write_faces_text"]
+
+
+WHITESPACE = np.zeros(256, dtype=bool)
+WHITESPACE[[9, 10, 11, 12, 13, 32]] = True  # the bytes bytes.split() splits on
+COMMENT_RE = re.compile(rb"#[^\n]*")
+CONTINUATION_RE = re.compile(rb"\\[ \t\x0b\x0c]*\n")
+NUMBER_RE = {
+    "f": re.compile(rb"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|nan|inf|infinity)", re.IGNORECASE),
+    "i": re.compile(rb"[+-]?\d+"),
+}
+
+
+def fromstring(buf: bytes, dtype) -> np.ndarray | None:
+    """Whitespace-separated numbers -> array, or None if some text is not a number."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DeprecationWarning)  # "could not be read to its end"
+        try:
+            return np.fromstring(buf, dtype=dtype, sep=" ")
+        except (ValueError, DeprecationWarning):
+            return None
+
+
+def ranges(starts: np.ndarray, lens: np.ndarray) -> np.ndarray:
+    """Concatenation of ``arange(s, s + l)`` for each start and length."""
+    lens = np.asarray(lens, dtype=np.int64)
+    total = int(lens.sum())
+    if total == 0:
+        return np.zeros(0, dtype=np.int64)
+    before = np.cumsum(lens) - lens
+    return np.repeat(np.asarray(starts, np.int64) - before, lens) + np.arange(total, dtype=np.int64)
+
+
+class Text:
+    """Whitespace tokens of a text file, grouped into records (non-blank lines).
+
+    ``start``/``end`` are the byte ranges of the tokens; record ``r`` is the
+    tokens ``rec_first[r] .. rec_first[r] + rec_count[r] - 1``.  Line endings
+    ``\\r\\n`` and ``\\r`` count as ``\\n``; ``comments`` removes ``#`` to the end
+    of a line; ``continuations`` joins lines ending in a backslash (line
+    numbers in messages stay those of the file).
+    """
+
+    def __init__(self, data: bytes, name: str, *, line_offset: int = 0,
+                 comments: bool = False, continuations: bool = False):
+        self.name = name
+        self.line_offset = line_offset
+        if b"\r" in data:
+            data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+        if comments and b"#" in data:
+            data = COMMENT_RE.sub(b"", data)  # keeps the newlines, so line numbers
+        joined = None
+        if continuations and b"\\" in data:
+            joined = np.array([m.end() - 1 for m in CONTINUATION_RE.finditer(data)], dtype=np.int64)
+            if joined.size:
+                # blank the backslashes (same length), and do not break lines at ``joined``
+                data = CONTINUATION_RE.sub(lambda m: b" " + m.group()[1:], data)
+        self.data = data
+        a = np.frombuffer(data, dtype=np.uint8)
+        edge = np.diff(WHITESPACE[a].view(np.int8), prepend=np.int8(1), append=np.int8(1))
+        self.start = np.flatnonzero(edge == -1)
+        self.end = np.flatnonzero(edge == 1)
+        nl = np.flatnonzero(a == 10)
+        if joined is not None and joined.size:
+            nl = np.setdiff1d(nl, joined, assume_unique=True)
+        line = np.searchsorted(nl, self.start)
+        new = np.ones(line.size, dtype=bool)
+        np.not_equal(line[1:], line[:-1], out=new[1:])
+        self.rec_first = np.flatnonzero(new)
+        self.rec_count = np.diff(np.append(self.rec_first, line.size))
+        self._padded = None
+
+    @property
+    def n_records(self) -> int:
+        return self.rec_first.size
+
+    def lineno(self, tok) -> int:
+        """Line number (1-based, in the file) of token ``tok``."""
+        return self.line_offset + self.data.count(b"\n", 0, int(self.start[int(tok)])) + 1
+
+    def last_lineno(self) -> int:
+        d = self.data
+        return self.line_offset + d.count(b"\n") + (0 if d.endswith(b"\n") or not d else 1)
+
+    def token(self, tok, end=None) -> str:
+        s = int(self.start[int(tok)])
+        e = int(self.end[int(tok)]) if end is None else int(end)
+        t = self.data[s:e].decode("latin-1")
+        return repr(t if len(t) <= 40 else t[:37] + "...")
+
+    def error(self, tok, msg: str) -> MeshError:
+        return MeshError(f"{self.name}: line {self.lineno(tok)}: {msg}")
+
+    def error_at_end(self, msg: str) -> MeshError:
+        return MeshError(f"{self.name}: line {self.last_lineno()}: {msg}")
+
+    def parse(self, toks: np.ndarray, dtype, what: str, ends: np.ndarray | None = None) -> np.ndarray:
+        """Convert tokens ``toks`` (increasing indices) to numbers, in bulk.
+
+        ``ends`` overrides the tokens' end bytes (to read a prefix of each).
+        """
+        dtype = np.dtype(dtype)
+        toks = np.asarray(toks, dtype=np.int64)
+        n = toks.size
+        if n == 0:
+            return np.zeros(0, dtype=dtype)
+        s = self.start[toks]
+        e = self.end[toks] if ends is None else ends
+        if ends is None and int(toks[-1] - toks[0]) == n - 1:  # a contiguous run of tokens
+            buf = self.data[int(s[0]):int(e[-1])]
+        else:
+            if self._padded is None:
+                self._padded = np.append(np.frombuffer(self.data, dtype=np.uint8), np.uint8(32))
+            lens = e - s + 1  # each token and one separator
+            idx = ranges(s, lens)
+            idx[np.cumsum(lens) - 1] = self._padded.size - 1
+            buf = self._padded[idx].tobytes()
+        out = fromstring(buf, dtype)
+        if out is None or out.size != n:
+            self._raise_bad_number(toks, ends, dtype, what)
+        return out
+
+    def _raise_bad_number(self, toks, ends, dtype, what):
+        pattern = NUMBER_RE["f" if dtype.kind == "f" else "i"]
+        data = self.data
+        for j, t in enumerate(toks.tolist()):
+            e = self.end[t] if ends is None else ends[j]
+            if not pattern.fullmatch(data, int(self.start[t]), int(e)):
+                raise self.error(t, f"{self.token(t, e)} is not a valid {what}")
+        raise self.error(toks[0], f"cannot read the {what}s starting here")  # pragma: no cover
+
+
+def strip_bom(data: bytes) -> bytes:
+    """``data`` without a leading UTF-8 byte-order mark (written by some editors)."""
+    return data[3:] if data.startswith(b"\xef\xbb\xbf") else data
+
+
+def text_data(data: bytes, name: str, kind: str) -> bytes:
+    """Checks common to text formats: not empty, not binary; strips a BOM."""
+    data = strip_bom(data)
+    if not data.strip():
+        raise MeshError(f"{name}: empty file")
+    nul = data.find(b"\x00")
+    if nul >= 0:
+        line = data.count(b"\n", 0, nul) + 1
+        raise MeshError(f"{name}: line {line}: binary data (NUL byte) in a text {kind} file")
+    return data
+
+
+def build_mesh(name: str, vertices, sizes, indices, *, attributes=None,
+           where_vertex=None, where_face=None) -> Mesh:
+    """Make the Mesh; its validation errors are re-raised naming the file and place."""
+    try:
+        return Mesh.from_csr(vertices, sizes, indices, attributes=attributes)
+    except MeshError as exc:
+        msg = str(exc)
+        m = re.search(r"\b(face|vertex) (\d+)\b", msg)
+        where = None
+        if m:
+            fn = where_face if m.group(1) == "face" else where_vertex
+            where = fn(int(m.group(2))) if fn is not None else None
+        raise MeshError(f"{name}: {where}: {msg}" if where else f"{name}: {msg}") from None
+
+
+@lru_cache(maxsize=None)
+def face_template(prefix: str, k: int) -> str:
+    return prefix + " %d" * k + "\n"
+
+
+def write_rows(f: BinaryIO, row_format: str, rows: np.ndarray, chunk: int = 65536) -> None:
+    """Write a float array row by row with a %-format (``%r`` = exact repr)."""
+    for i in range(0, rows.shape[0], chunk):
+        block = rows[i:i + chunk]
+        f.write(((row_format * block.shape[0]) % tuple(block.ravel().tolist())).encode("ascii"))
+
+
+def write_faces_text(f: BinaryIO, mesh: Mesh, prefix: str, base: int, with_size: bool,
+                      chunk: int = 65536) -> None:
+    sizes = mesh.face_sizes
+    offsets = mesh.face_offsets
+    indices = mesh.face_indices
+    for i in range(0, sizes.size, chunk):
+        ks = sizes[i:i + chunk].tolist()
+        fmt = "".join([face_template(f"{prefix}{k}" if with_size else prefix, k) for k in ks])
+        corners = indices[offsets[i]:offsets[min(i + chunk, sizes.size)]]
+        f.write((fmt % tuple((corners + base).tolist())).encode("ascii"))

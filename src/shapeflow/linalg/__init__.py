@@ -1,0 +1,24 @@
+"""The linear-algebra layer: every solver shapeflow uses, for the systems the flow and the brush build.
+
+* :mod:`~shapeflow.linalg.spd` — :class:`SPDSolver` (Jacobi CG, sparse
+  Cholesky, SuperLU) with the cost model that picks one;
+* :mod:`~shapeflow.linalg.chebyshev` — several fixed-operator steps as one
+  Chebyshev expansion;
+* :mod:`~shapeflow.linalg.multishift` — multi-shift CG (a family of shifted
+  systems from one Krylov space);
+* :mod:`~shapeflow.linalg.local` — :class:`LocalSolver` for streams of small
+  SPD systems (banded, split, sparse), with :mod:`~shapeflow.linalg.banded`,
+  :mod:`~shapeflow.linalg.ordering` and the BLAS thread control of
+  :mod:`~shapeflow.linalg.blas`.
+
+Compiled twins: :mod:`~shapeflow.linalg.compiled` (CG, Clenshaw step) and
+:mod:`~shapeflow.linalg.compiled_split` (the two-thread split solve).
+"""
+
+from .chebyshev import chebyshev_coefficients, chebyshev_steps
+from .local import LocalSolver
+from .multishift import MultiShiftResult, multishift_cg
+from .spd import DEFAULT_RTOL, METHODS, SPDSolver, SolveStats, choose_method, cholesky_available
+
+__all__ = ["SPDSolver", "SolveStats", "METHODS", "DEFAULT_RTOL", "choose_method", "cholesky_available",
+           "chebyshev_coefficients", "chebyshev_steps", "multishift_cg", "MultiShiftResult", "LocalSolver"]

@@ -1,0 +1,166 @@
+"""Compiled topology: unique edges and the first face with a repeated vertex.
+
+The NumPy/SciPy reference is :mod:`shapeflow.mesh.topology` and :mod:`shapeflow.mesh.validate`; the
+tests compare the two.
+Conventions of all compiled kernels: :mod:`shapeflow.accel`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import get_num_threads, njit, prange
+
+from ..accel import zeros
+
+
+def edge_data(fi, offsets, n):
+    """Same outputs as the NumPy ``Topology._edge_data``.
+
+    Half-edges are bucketed by their low vertex (counting sort, stable in
+    corner order), then each small bucket is insertion-sorted by the high
+    vertex (stable), which is the order of a stable argsort of lo·n + hi;
+    edges are numbered bucket by bucket.  Walks the faces (``offsets``), so
+    the corner_next array is not needed.  The bucketing runs on all threads,
+    each placing the half-edges of its own range of low vertices.
+    """
+    c = fi.size
+    vt = np.int32 if n < 2**31 - 1 else np.int64
+    lo = np.empty(c, vt)
+    hi = np.empty(c, vt)
+    order = np.empty(c, np.int64)
+    start = zeros(n + 1, np.int64)
+    ucount = np.empty(n + 1, np.int64)
+    n_e = _edge_sort(fi, offsets, n, lo, hi, order, start, ucount, get_num_threads())
+    edges = np.empty((n_e, 2), np.int64)
+    starts = np.empty(n_e + 1, np.int64)
+    corner_edge = np.empty(c, np.int64)
+    _edge_number(n, hi, order, start, ucount, corner_edge, starts, edges)
+    return edges, corner_edge, starts, order
+
+
+@njit(parallel=True, cache=True)
+def _edge_sort(fi, offsets, n, lo, hi, order, start, ucount, nt):
+    """Buckets of half-edges by low vertex, sorted by high vertex; returns the number of edges
+    (``ucount[v]`` = edges of the buckets before v)."""
+    c = fi.size
+    m = offsets.size - 1
+    for f in prange(m):
+        o = offsets[f]
+        e = offsets[f + 1]
+        for k in range(o, e):
+            a = fi[k]
+            b = fi[k + 1] if k + 1 < e else fi[o]
+            if a < b:
+                lo[k] = a
+                hi[k] = b
+            else:
+                lo[k] = b
+                hi[k] = a
+    # thread t counts and places the half-edges whose low end lies in its range [v0, v1),
+    # scanning all corners in order (so every bucket stays in corner order)
+    for t in prange(nt):
+        v0 = t * n // nt
+        w = np.uint64((t + 1) * n // nt - v0)
+        for k in range(c):
+            a = lo[k]
+            if np.uint64(a - v0) < w:
+                start[np.uint64(a + 1)] += 1
+    for v in range(n):
+        start[v + 1] += start[v]
+    for t in prange(nt):
+        v0 = t * n // nt
+        v1 = (t + 1) * n // nt
+        w = np.uint64(v1 - v0)
+        fill = start[v0:v1].copy()
+        for k in range(c):
+            j = np.uint64(lo[k] - v0)
+            if j < w:
+                order[np.uint64(fill[j])] = k
+                fill[j] += 1
+    # insertion sort of each bucket by hi (stable), then its number of distinct edges
+    for v in prange(n):
+        s = start[v]
+        e = start[v + 1]
+        for q in range(s + 1, e):
+            k = order[q]
+            h = hi[np.uint64(k)]
+            r = q - 1
+            while r >= s and hi[np.uint64(order[r])] > h:
+                order[r + 1] = order[r]
+                r -= 1
+            order[r + 1] = k
+        u = 0
+        prev = -1
+        for q in range(s, e):
+            h = hi[np.uint64(order[q])]
+            if h != prev:
+                u += 1
+                prev = h
+        ucount[v + 1] = u
+    ucount[0] = 0
+    for v in range(n):
+        ucount[v + 1] += ucount[v]
+    return ucount[n]
+
+
+@njit(parallel=True, cache=True)
+def _edge_number(n, hi, order, start, ucount, corner_edge, starts, edges):
+    """Edge ids bucket by bucket: the edges (low, high), where each edge's corners start, each corner's edge."""
+    for v in prange(n):
+        s = start[v]
+        e = start[v + 1]
+        eid = ucount[v] - 1
+        prev = -1
+        for q in range(s, e):
+            k = np.uint64(order[q])
+            h = hi[k]
+            if h != prev:
+                eid += 1
+                prev = h
+                starts[eid] = q
+                edges[eid, 0] = v
+                edges[eid, 1] = h
+            corner_edge[k] = eid
+    starts[starts.size - 1] = order.size
+
+
+def first_bad_face(fi, offsets, n):
+    """Index of the first face with fewer than 3 corners, a vertex outside [0, n) or a vertex
+    listed twice; -1 if none.  ``Mesh`` validation's fast path (the messages come from the
+    NumPy checks, run only when this finds something)."""
+    return int(_first_bad_face(fi, offsets, n, get_num_threads()))
+
+
+@njit(parallel=True, cache=True)
+def _first_bad_face(fi, offsets, n, nt):
+    m = offsets.size - 1
+    first = np.full(nt, m)
+    for t in prange(nt):              # each thread scans its range of faces up to its first bad one
+        f0 = t * m // nt
+        f1 = (t + 1) * m // nt
+        for f in range(f0, f1):
+            s = offsets[f]
+            e = offsets[f + 1]
+            bad = e - s < 3
+            for a in range(s, e):
+                va = fi[a]
+                if va < 0 or va >= n:
+                    bad = True
+            if not bad and e - s <= 16:      # small faces: compare the pairs
+                for a in range(s, e):
+                    for b in range(a + 1, e):
+                        if fi[b] == fi[a]:
+                            bad = True
+            elif not bad:                    # large faces: sort a copy, O(k log k), not O(k²)
+                srt = np.sort(fi[s:e])
+                for a in range(srt.size - 1):
+                    if srt[a] == srt[a + 1]:
+                        bad = True
+                        break
+            if bad:
+                first[t] = f
+                break
+    best = m
+    for t in range(nt):
+        best = min(best, first[t])
+    return best if best < m else -1

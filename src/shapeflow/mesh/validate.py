@@ -1,0 +1,159 @@
+"""Normalisation and validation of vertex, face and attribute input (the only place face layouts are accepted).
+
+Accepted face inputs: a list of lists (ragged), an (m, k) integer array
+(k >= 3), or a CSR pair (``face_indices`` + ``face_offsets``).  Everything
+that is not a valid mesh raises :class:`~shapeflow.errors.MeshError` naming
+the offending face, vertex or attribute.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from .. import accel
+from ..errors import MeshError
+
+__all__ = ["WEIGHT", "as_vertices", "as_index_array", "normalize_faces", "validate_csr", "as_attribute"]
+
+
+#: Name of the per-vertex weight attribute (values in [0, 1]).
+WEIGHT = "weight"
+
+
+def as_vertices(vertices) -> np.ndarray:
+    try:
+        v = np.asarray(vertices)
+    except Exception as exc:  # ragged input etc.
+        raise MeshError(f"vertices are not an (n, 3) array of numbers: {exc}") from None
+    if v.dtype == object or not (np.issubdtype(v.dtype, np.number) or v.dtype == bool):
+        raise MeshError(f"vertices must be numbers, got dtype {v.dtype}")
+    if np.iscomplexobj(v):
+        raise MeshError("vertices must be real numbers, got complex values")
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise MeshError(f"vertices must have shape (n, 3), got {v.shape}")
+    v = np.array(v, dtype=np.float64, order="C", copy=True)
+    if np.isfinite(v).all():    # one flat pass; the per-vertex detail only for the message
+        return v
+    bad = ~np.isfinite(v).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise MeshError(
+            f"vertex {i} has a non-finite coordinate {v[i].tolist()} "
+            f"({int(bad.sum())} such vertices)"
+        )
+    return v
+
+
+def as_index_array(a, what: str) -> np.ndarray:
+    arr = np.asarray(a)
+    if arr.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    if arr.dtype == object or not np.issubdtype(arr.dtype, np.integer):
+        if np.issubdtype(arr.dtype, np.floating) and np.all(np.isfinite(arr)) and np.all(arr == np.round(arr)):
+            return arr.astype(np.int64).reshape(-1)
+        raise MeshError(f"{what} must be integers, got dtype {arr.dtype}")
+    return arr.astype(np.int64, copy=False).reshape(-1)
+
+
+def normalize_faces(faces) -> tuple[np.ndarray, np.ndarray]:
+    """Turn any accepted face layout into ``(face_indices, face_offsets)``.
+
+    Accepts a list (or tuple) of index sequences of any lengths, or an (m, k)
+    integer array.  Structural checks (face sizes, index range, repeated
+    vertices) are done by :class:`Mesh`, which knows the vertex count.
+    """
+    if isinstance(faces, np.ndarray) and faces.dtype != object:
+        if faces.ndim != 2:
+            if faces.size == 0:
+                return np.zeros(0, np.int64), np.zeros(1, np.int64)
+            raise MeshError(
+                f"a face array must have shape (m, k) with k >= 3, got {faces.shape}; "
+                "use a list of lists or Mesh.from_csr for mixed face sizes"
+            )
+        m, k = faces.shape
+        if m and k < 3:
+            raise MeshError(f"a face array must have shape (m, k) with k >= 3, got {faces.shape}")
+        idx = as_index_array(faces, "face indices")
+        return idx, np.arange(m + 1, dtype=np.int64) * k
+    try:
+        seq = list(faces)
+    except TypeError:
+        raise MeshError(f"faces must be a list of index lists or an (m, k) array, got {type(faces).__name__}") from None
+    sizes = np.empty(len(seq), dtype=np.int64)
+    try:
+        for i, f in enumerate(seq):
+            sizes[i] = len(f)
+    except TypeError:
+        raise MeshError(f"face {i} is not a sequence of vertex indices: {f!r}") from None
+    flat = list(itertools.chain.from_iterable(seq))
+    idx = as_index_array(flat, "face indices")
+    offsets = np.zeros(len(seq) + 1, dtype=np.int64)
+    np.cumsum(sizes, out=offsets[1:])
+    return idx, offsets
+
+
+def validate_csr(indices: np.ndarray, offsets: np.ndarray, n: int) -> None:
+    if offsets.ndim != 1 or offsets.size < 1 or offsets[0] != 0 or offsets[-1] != indices.size:
+        raise MeshError(
+            f"face offsets must start at 0 and end at the number of corners ({indices.size}); "
+            f"got {offsets.size} offsets"
+        )
+    fast = accel.compiled("mesh", n)
+    if fast is not None and fast.first_bad_face(indices, offsets, n) < 0:
+        return   # one compiled pass found nothing; otherwise the checks below say what is wrong
+    sizes = np.diff(offsets)
+    small = np.flatnonzero(sizes < 3)
+    if small.size:
+        f = int(small[0])
+        raise MeshError(f"face {f} has {int(sizes[f])} corners; a face needs at least 3 ({small.size} such faces)")
+    if indices.size and (indices.min() < 0 or indices.max() >= n):
+        bad = np.flatnonzero((indices < 0) | (indices >= n))
+        c = int(bad[0])
+        f = int(np.searchsorted(offsets, c, side="right") - 1)
+        raise MeshError(
+            f"face {f} refers to vertex {int(indices[c])}, out of range [0, {n}) "
+            f"({bad.size} such corners)"
+        )
+    # a vertex repeated inside one face: sort each face's corners, per face size
+    for s in np.unique(sizes):
+        faces_s = np.flatnonzero(sizes == s)
+        block = indices[offsets[faces_s][:, None] + np.arange(s)]
+        block.sort(axis=1)
+        rep = (block[:, 1:] == block[:, :-1]).any(axis=1)
+        if rep.any():
+            f = int(faces_s[np.flatnonzero(rep)[0]])
+            corners = indices[offsets[f]:offsets[f + 1]].tolist()
+            raise MeshError(f"face {f} repeats a vertex: {corners}")
+
+
+def as_attribute(name: str, values, n: int) -> np.ndarray:
+    """A copy of ``values`` as an attribute: integer and float32 arrays keep their type (a file's
+    ``uchar`` colours stay ``uchar``), anything else becomes float64; weights are always float64."""
+    try:
+        a = np.array(values, copy=True)
+        if a.dtype.kind not in "iufbO":   # strings, bytes, complex...: not real numbers
+            raise TypeError
+        if a.dtype.kind == "O" and any(isinstance(v, (str, bytes, complex)) for v in a.reshape(-1)):
+            raise TypeError
+        if name == WEIGHT or a.dtype.kind not in "iuf" or a.dtype.itemsize > 8:
+            a = a.astype(np.float64)
+        elif not a.dtype.isnative:
+            a = a.astype(a.dtype.newbyteorder("="))
+    except (TypeError, ValueError, OverflowError):
+        raise MeshError(f"attribute '{name}' must be real numbers, got dtype {np.asarray(values).dtype}") from None
+    if a.ndim == 0 or a.shape[0] != n:
+        raise MeshError(f"attribute '{name}' must have one value per vertex ({n}), got shape {a.shape}")
+    if not np.isfinite(a).all():
+        i = int(np.flatnonzero(~np.isfinite(a.reshape(n, -1)).all(axis=1))[0])
+        raise MeshError(f"attribute '{name}' has a non-finite value at vertex {i}")
+    if name == WEIGHT:
+        if a.ndim != 1:
+            raise MeshError(f"weights must have shape ({n},), got {a.shape}")
+        out = np.flatnonzero((a < 0) | (a > 1))
+        if out.size:
+            i = int(out[0])
+            raise MeshError(f"weights must lie in [0, 1]; vertex {i} has {float(a[i])!r} ({out.size} such vertices)")
+    a.flags.writeable = False
+    return a

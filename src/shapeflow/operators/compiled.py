@@ -1,0 +1,299 @@
+"""Compiled operator assembly: the sparse pattern, the corner cotangent sums and the matrix fill.
+
+The NumPy/SciPy reference is :mod:`shapeflow.operators.pattern` and
+:mod:`shapeflow.operators.weights`; the tests compare the two.
+Conventions of all compiled kernels: :mod:`shapeflow.accel`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import get_num_threads, njit, prange
+
+from ..accel import zeros
+from ..geometry.compiled import corner_triangle
+
+
+def fill_symmetric(nnz, pos_diag, diag, pos_upper, pos_lower, off):
+    """The data array of a matrix on a ``_Structure`` pattern."""
+    data = np.empty(nnz)
+    _fill_symmetric(data, pos_diag, diag, pos_upper, pos_lower, off)
+    return data
+
+
+@njit(cache=True)
+def _fill_symmetric(data, pos_diag, diag, pos_upper, pos_lower, off):
+    for i in range(pos_diag.size):
+        data[pos_diag[i]] = diag[i]
+    for p in range(pos_upper.size):
+        data[pos_upper[p]] = off[p]
+        data[pos_lower[p]] = off[p]
+
+
+def assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
+                     P, n, blender_rules, rel_edge_tol, rel_shape_tol, blender_min, flt_eps):
+    """``operators.weights.assemble`` for the corner triangles in two passes, no per-corner temporaries.
+
+    Same cotangent formulas and order of operations per corner as
+    ``operators.corner_cotangents``, same locking rules; the pair weights and
+    ring areas are summed in corner order instead of by ``bincount`` (equal to
+    rounding).  Returns pair weights (P,), ring areas (n,), locked (n,) and
+    the number of excluded corner triangles.
+    """
+    elen2 = np.empty(edges.shape[0])
+    locked = zeros(n, np.bool_)
+    pw = zeros(P)
+    ring = zeros(n)
+    n_bad = _assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
+                              blender_rules, rel_edge_tol, rel_shape_tol, blender_min, flt_eps,
+                              elen2, locked, pw, ring)
+    return pw, ring, locked, int(n_bad)
+
+
+@njit(cache=True)
+def _assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
+                      blender_rules, rel_edge_tol, rel_shape_tol, blender_min, flt_eps,
+                      elen2, locked, pw, ring):
+    m = offsets.size - 1
+    n_edges = elen2.size
+    # pass 1: squared edge lengths, from each corner's half-edge curr -> next
+    for f in range(m):
+        o = offsets[f]
+        e = offsets[f + 1]
+        for k in range(o, e):
+            a = np.uint64(fi[k])
+            b = np.uint64(fi[k + 1] if k + 1 < e else fi[o])
+            dx = V[b, 0] - V[a, 0]
+            dy = V[b, 1] - V[a, 1]
+            dz = V[b, 2] - V[a, 2]
+            elen2[np.uint64(corner_edge[k])] = dx * dx + dy * dy + dz * dz
+    if blender_rules:
+        thr = blender_min * blender_min
+        for e in range(n_edges):
+            if elen2[e] < thr:
+                locked[edges[e, 0]] = True
+                locked[edges[e, 1]] = True
+    else:
+        h = 0.0
+        for e in range(n_edges):
+            h += np.sqrt(elen2[e])
+        h = h / n_edges if n_edges else 0.0
+        thr = (rel_edge_tol * h) ** 2
+        for e in range(n_edges):
+            if elen2[e] <= thr:
+                locked[edges[e, 0]] = True
+                locked[edges[e, 1]] = True
+    # pass 2: per corner triangle (prev, curr, next), face by face (weights by face size)
+    n_bad = 0
+    for f in range(m):
+        o = offsets[f]
+        sz = offsets[f + 1] - o
+        if tqlbo:
+            wf = 1.0 / 3.0 if sz == 3 else 2.0 / sz
+            awf = wf
+        else:
+            wf = 0.5
+            awf = 1.0
+        for j in range(sz):
+            k = o + j
+            kp = o + (j + sz - 1) % sz
+            ia = np.uint64(fi[kp])
+            ib = np.uint64(fi[k])
+            ic = np.uint64(fi[o + (j + 1) % sz])
+            lp, ln, dot, d = corner_triangle(V[ia, 0], V[ia, 1], V[ia, 2], V[ib, 0], V[ib, 1], V[ib, 2],
+                                     V[ic, 0], V[ic, 1], V[ic, 2])
+            if blender_rules:
+                if 0.5 * d < blender_min:
+                    locked[ib] = True
+                bad = not (d > flt_eps)
+            else:
+                ls = lp + ln - 2.0 * dot
+                bad = d <= rel_shape_tol * max(max(lp, ln), ls)
+                if bad:
+                    locked[ia] = True
+                    locked[ib] = True
+                    locked[ic] = True
+            ca = 0.5 * d * awf
+            ring[ia] += ca
+            ring[ib] += ca
+            ring[ic] += ca
+            if bad:
+                n_bad += 1
+                continue
+            inv = 1.0 / d if d > 0.0 else 0.0
+            pw[np.uint64(corner_edge[k])] += wf * ((lp - dot) * inv)     # angle at prev, opposite curr-next
+            pw[np.uint64(corner_edge[kp])] += wf * ((ln - dot) * inv)    # angle at next, opposite prev-curr
+            pw[np.uint64(skip_pair[k])] += wf * (dot * inv)              # angle at curr, opposite prev-next
+    return n_bad
+
+
+def pair_degree(pairs, pw, n):
+    """Σ of the pair weights at each end (the two bincounts of ``_assemble``, added)."""
+    deg0 = zeros(n)
+    deg1 = zeros(n)
+    _pair_degree(pairs, pw, deg0, deg1)
+    deg0 += deg1
+    return deg0
+
+
+@njit(cache=True)
+def _pair_degree(pairs, pw, deg0, deg1):
+    for p in range(pw.size):
+        deg0[np.uint64(pairs[p, 0])] += pw[p]
+        deg1[np.uint64(pairs[p, 1])] += pw[p]
+
+
+def pair_pattern(pairs, n):
+    """Symmetric CSR pattern of ``pairs`` plus the diagonal, duplicates kept.
+
+    Same layout as ``operators.pattern.csr_pattern`` on rows = (p0, p1, diag), cols =
+    (p1, p0, diag): columns sorted within a row, equal columns in that entry
+    order.  Returns indptr, indices (int32) and the positions of every upper
+    entry, lower entry and diagonal entry.  Needs 2P + n < 2**31.
+    """
+    P = pairs.shape[0]
+    nnz = 2 * P + n
+    indptr = zeros(n + 1, np.int32)
+    indices = np.empty(nnz, np.int32)
+    tag = np.empty(nnz, np.int32)
+    pos_upper = np.empty(P, np.int32)
+    pos_lower = np.empty(P, np.int32)
+    pos_diag = np.empty(n, np.int32)
+    _pair_pattern(pairs, n, indptr, indices, tag, pos_upper, pos_lower, pos_diag, np.empty(n, np.int32),
+                  get_num_threads())
+    return indptr, indices, pos_upper, pos_lower, pos_diag
+
+
+@njit(parallel=True, cache=True)
+def _pair_pattern(pairs, n, indptr, indices, tag, pos_upper, pos_lower, pos_diag, fill, nt):
+    P = pairs.shape[0]
+    for p in range(P):
+        indptr[np.uint64(pairs[p, 0] + 1)] += 1
+        indptr[np.uint64(pairs[p, 1] + 1)] += 1
+    for i in range(n):
+        indptr[i + 1] += indptr[i] + 1
+    # thread t places the entries of its rows [v0, v1), scanning all pairs in order
+    # (upper entries, then lower entries, then the diagonal: the entry order of the NumPy code)
+    for t in prange(nt):
+        v0 = t * n // nt
+        v1 = (t + 1) * n // nt
+        w = np.uint64(v1 - v0)
+        for i in range(v0, v1):
+            fill[i] = indptr[i]
+        for p in range(P):
+            r = pairs[p, 0]
+            if np.uint64(r - v0) < w:
+                q = fill[np.uint64(r)]
+                indices[np.uint64(q)] = pairs[p, 1]
+                tag[np.uint64(q)] = p
+                fill[np.uint64(r)] = q + 1
+        for p in range(P):
+            r = pairs[p, 1]
+            if np.uint64(r - v0) < w:
+                q = fill[np.uint64(r)]
+                indices[np.uint64(q)] = pairs[p, 0]
+                tag[np.uint64(q)] = P + p
+                fill[np.uint64(r)] = q + 1
+        for i in range(v0, v1):
+            q = fill[i]
+            indices[q] = i
+            tag[q] = 2 * P + i
+    for i in prange(n):   # rows are independent: sort, then record where each entry went
+        s = indptr[i]
+        e = indptr[i + 1]
+        for q in range(s + 1, e):
+            col = indices[q]
+            t = tag[q]
+            r = q - 1
+            while r >= s and indices[r] > col:
+                indices[r + 1] = indices[r]
+                tag[r + 1] = tag[r]
+                r -= 1
+            indices[r + 1] = col
+            tag[r + 1] = t
+        for q in range(s, e):
+            t = tag[q]
+            if t < P:
+                pos_upper[np.uint64(t)] = q
+            elif t < 2 * P:
+                pos_lower[np.uint64(t - P)] = q
+            else:
+                pos_diag[np.uint64(t - 2 * P)] = q
+
+
+def structure_core(fi, offsets, corner_edge, edges, n):
+    """Chord pairs and skip pairs of ``operators.pattern.OperatorPattern``.
+
+    For meshes without tqlbo fan triangles (triangles and quads, or any
+    polygon with the Blender scheme).  Returns skip_pair (int32 when the
+    pairs allow) and pairs (int32 when the n vertices allow) = edges followed
+    by the primary chords, in the order of the NumPy code.  (The corner weights depend on the face size
+    only; ``assemble_corners`` computes them on the fly.)
+    """
+    sizes = np.diff(offsets)
+    n_edges = edges.shape[0]
+    n_primary = 2 * int(np.count_nonzero(sizes == 4)) + int(sizes[sizes > 4].sum())
+    P = n_edges + n_primary
+    pairs = np.empty((P, 2), np.int32 if n < 2**31 - 1 else np.int64)   # int32: half the bytes
+    pairs[:n_edges] = edges
+    skip_pair = np.empty(fi.size, np.int32 if P < 2**31 - 1 else np.int64)
+    _structure_core(fi, offsets, corner_edge, n_edges, pairs, skip_pair)
+    return skip_pair, pairs
+
+
+@njit(cache=True)
+def _structure_core(fi, offsets, corner_edge, n_edges, pairs, skip_pair):
+    m = offsets.size - 1
+    cnt = 0
+    for f in range(m):
+        o = offsets[f]
+        s = offsets[f + 1] - o
+        for j in range(s):
+            k = o + j
+            if s == 3:
+                skip_pair[k] = corner_edge[o + (j + 1) % 3]
+            elif s == 4 and j >= 2:
+                skip_pair[k] = skip_pair[k - 2]
+            else:
+                a = fi[o + (j + s - 1) % s]
+                b = fi[o + (j + 1) % s]
+                pairs[n_edges + cnt, 0] = a if a < b else b
+                pairs[n_edges + cnt, 1] = b if a < b else a
+                skip_pair[k] = n_edges + cnt
+                cnt += 1
+
+
+def permute_pattern(indptr, indices, perm):
+    """The symmetric pattern (indptr, indices) with rows and columns in the order ``perm``.
+
+    Returns (indptr, indices) of the permuted pattern (columns sorted within a
+    row, equal columns in their original order) and ``source``: the position
+    in the original pattern of each permuted entry, so permuted data =
+    data[source].
+    """
+    n = perm.size
+    inv = np.empty(n, np.int64)
+    inv[perm] = np.arange(n)
+    ptr = np.zeros(n + 1, np.int32)
+    np.cumsum(np.diff(indptr)[perm], out=ptr[1:])
+    idx = np.empty(indices.size, np.int32)
+    src = np.empty(indices.size, np.int32)
+    _permute_pattern(indptr, indices, perm, inv, ptr, idx, src)
+    return ptr, idx, src
+
+
+@njit(parallel=True, cache=True)
+def _permute_pattern(indptr, indices, perm, inv, ptr, idx, src):
+    for r in prange(perm.size):
+        o = perm[r]
+        s = indptr[o]
+        q0 = ptr[r]
+        for t in range(indptr[o + 1] - s):
+            col = inv[np.uint64(indices[s + t])]
+            q = q0 + t
+            while q > q0 and idx[q - 1] > col:      # insertion sort, stable
+                idx[q] = idx[q - 1]
+                src[q] = src[q - 1]
+                q -= 1
+            idx[q] = col
+            src[q] = s + t

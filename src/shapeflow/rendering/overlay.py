@@ -1,0 +1,106 @@
+"""Pillow overlays: colour bars and label bands under the rendered panels."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from .backend import colormap, pil_modules
+
+
+_FONT_PATH: list = []
+
+
+def load_font(size: int):
+    """DejaVu Sans from matplotlib's data (it has Greek: λ), else Pillow's default font."""
+    _, _, ImageFont = pil_modules()
+    if not _FONT_PATH:
+        path = None
+        try:
+            import matplotlib
+
+            cand = os.path.join(matplotlib.get_data_path(), "fonts", "ttf", "DejaVuSans.ttf")
+            path = cand if os.path.exists(cand) else None
+        except ImportError:
+            pass
+        _FONT_PATH.append(path)
+    if _FONT_PATH[0]:
+        try:
+            return ImageFont.truetype(_FONT_PATH[0], size)
+        except OSError:
+            pass
+    try:
+        return ImageFont.load_default(size=size)
+    except TypeError:  # Pillow < 10.1: fixed bitmap font
+        return ImageFont.load_default()
+
+
+def format_tick(x: float) -> str:
+    if x == 0:
+        return "0"
+    return f"{x:.3g}".replace("e-0", "e-").replace("e+0", "e")
+
+
+def colorbar_font_size(width: int) -> int:
+    return int(np.clip(round(0.016 * width), 11, 16))
+
+
+def colorbar_height(width: int) -> int:
+    """Height of the colour-bar band: title line, bar, tick labels."""
+    fs = colorbar_font_size(width)
+    return int(round(fs * 1.5 + max(8, 0.9 * fs) + fs * 1.6 + 6))
+
+
+def colorbar_image(width: int, height: int, cmap_name: str, clim, label: str, diverging: bool,
+              transparent: bool) -> np.ndarray:
+    """A horizontal colour bar: the title above it, tick values under it."""
+    Image, ImageDraw, _ = pil_modules()
+    mode = "RGBA" if transparent else "RGB"
+    bg = (255, 255, 255, 0) if transparent else (255, 255, 255)
+    im = Image.new(mode, (width, height), bg)
+    draw = ImageDraw.Draw(im)
+    fs = colorbar_font_size(width)
+    font = load_font(fs)
+    ink = (40, 40, 40, 255) if transparent else (40, 40, 40)
+    bar_w = int(min(0.5 * width, 40 * fs))
+    bar_h = int(max(8, 0.9 * fs))
+    x0 = (width - bar_w) // 2
+    y0 = int(round(fs * 1.5))
+    if label:
+        tw = draw.textlength(label, font=font)
+        draw.text(((width - tw) / 2, y0 - fs * 1.35), label, fill=ink, font=font)
+    grad = colormap(cmap_name)(np.linspace(0, 1, bar_w))[:, :3]
+    grad = (np.round(grad * 255)).astype(np.uint8)
+    strip = np.repeat(grad[None], bar_h, axis=0)
+    if transparent:
+        strip = np.concatenate([strip, np.full(strip.shape[:2] + (1,), 255, np.uint8)], axis=2)
+    im.paste(Image.fromarray(strip, mode), (x0, y0))
+    draw.rectangle([x0 - 1, y0 - 1, x0 + bar_w, y0 + bar_h], outline=ink)
+    ticks = [clim[0], clim[1]]
+    if diverging and clim[0] < 0 < clim[1]:
+        ticks.insert(1, 0.0)
+    for t in ticks:
+        fx = (t - clim[0]) / (clim[1] - clim[0])
+        xp = x0 + int(round(fx * (bar_w - 1)))
+        draw.line([xp, y0 + bar_h, xp, y0 + bar_h + 3], fill=ink)
+        txt = format_tick(t)
+        tw = draw.textlength(txt, font=font)
+        draw.text((min(max(xp - tw / 2, 0), width - tw), y0 + bar_h + 4), txt, fill=ink, font=font)
+    return np.asarray(im)
+
+
+def label_band(width: int, height: int, text: str, transparent: bool) -> np.ndarray:
+    Image, ImageDraw, _ = pil_modules()
+    mode = "RGBA" if transparent else "RGB"
+    im = Image.new(mode, (width, height), (255, 255, 255, 0) if transparent else (255, 255, 255))
+    draw = ImageDraw.Draw(im)
+    fs = max(10, int(height * 0.66))
+    font = load_font(fs)
+    while fs > 8 and draw.textlength(text, font=font) > width - 4:
+        fs -= 1
+        font = load_font(fs)
+    tw = draw.textlength(text, font=font)
+    draw.text(((width - tw) / 2, (height - fs) / 2 - 1), text, fill=(30, 30, 30, 255) if transparent else (30, 30, 30),
+              font=font)
+    return np.asarray(im)

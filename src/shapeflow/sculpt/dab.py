@@ -1,0 +1,235 @@
+"""The region and the small SPD system of one enhancement-brush dab."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import accel
+from .base import Dab, serialised
+from .numbering import csr_ranges
+from .stroke import apply_falloff, as_point
+
+__all__ = ["DabSystem"]
+
+
+class DabSystem:
+    """The region and the linear system of one dab (a mixin of :class:`~shapeflow.sculpt.brush.Brush`).
+
+    :meth:`_classify` finds the rim, locks, weights and degrees of the
+    vertices inside the sphere; :meth:`_solve_region` assembles the rows of
+    the free vertices (exactly the flow's rows, with the rim and the fixed
+    vertices as Dirichlet values) and solves them with the brush's
+    :class:`~shapeflow.linalg.local.LocalSolver`, the boundary block first.
+    """
+
+    @serialised
+    def region(self, center) -> dict:
+        """Inside, rim and free vertices of a dab at ``center`` (nothing is solved).
+
+        Returns sorted index arrays ``inside``, ``rim``, ``free`` (the vertices
+        a dab would solve for) and ``fixed`` (inside, not rim, yet kept in
+        place: weight 0, locked, or a boundary vertex with λ_b = 0).
+        """
+        c = as_point(center)
+        S, d = self._query(c, self._radius)
+        try:
+            info = self._classify(S, d)
+            free = info["free_i"] | info["free_b"]
+            P = self._perm
+            return {"inside": np.sort(P[S]), "rim": np.sort(P[S[info["rim"]]]), "free": np.sort(P[S[free]]),
+                    "fixed": np.sort(P[S[~info["rim"] & ~free]])}
+        finally:
+            self._slot[S] = -1
+
+    def _classify(self, S: np.ndarray, d: np.ndarray) -> dict:
+        """Rim, locks, weights and degrees of the region ``S`` (fills ``self._slot``)."""
+        ns = S.size
+        slot = self._slot
+        slot[S] = np.arange(ns)
+        K = accel.compiled("sculpt", self._n, min_size=0)
+        if K is not None:   # the same rim and degrees in one compiled pass; _solve_region walks again
+            rim = np.empty(ns, dtype=bool)
+            deg = np.empty(ns)
+            K.brush_classify(S, slot, self._vn_ptr, self._vn_nb, self._vn_pair, self._pw, rim, deg)
+            rowid = snb = pwe = None
+        else:
+            ent, lens = csr_ranges(self._vn_ptr, S)
+            rowid = np.repeat(np.arange(ns), lens)
+            nb = self._vn_nb.take(ent, mode="clip")
+            pwe = self._pw.take(self._vn_pair.take(ent, mode="clip"), mode="clip")
+            snb = slot.take(nb, mode="clip")
+            rim = np.bincount(rowid[snb < 0], minlength=ns) > 0
+            rim |= lens == 0
+            deg = np.bincount(rowid, pwe, minlength=ns)
+        w = self._w[S]
+        if self._falloff_fn is not None:
+            w = w * apply_falloff(self._falloff_fn, d / self._radius)
+        mass = deg if self.normalized else 2.0 * self._ring_areas(S)
+        bnd = self._bmask[S]
+        cand = ~rim & (self._vlock[S] == 0) & (w > 0)
+        if self._lam != 0.0:
+            free_i = cand & ~bnd & (mass > 0) & (deg > 0)
+        else:
+            free_i = np.zeros(ns, dtype=bool)
+        free_b = cand & bnd if self._lam_b != 0.0 else np.zeros(ns, dtype=bool)
+        return dict(rowid=rowid, snb=snb, pwe=pwe, rim=rim, deg=deg, w=w, mass=mass,
+                    free_i=free_i, free_b=free_b)
+
+    def _compute(self, c: np.ndarray) -> Dab:
+        self._notes = []   # fallbacks taken by this dab (calls are serialised: one dab at a time)
+        S, d = self._query(c, self._radius)
+        if S.size == 0:
+            return Dab(c, self._radius, np.zeros(0, np.int64), np.zeros((0, 3)), np.zeros((0, 3)))
+        order = np.argsort(S)
+        S, d = S[order], d[order]
+        try:
+            info = self._classify(S, d)
+            return self._solve_region(c, S, info)
+        finally:
+            self._slot[S] = -1
+
+    def _solve_region(self, c: np.ndarray, S: np.ndarray, info: dict) -> Dab:
+        V = self._V
+        ns = S.size
+        rim = S[info["rim"]]
+        lam, lam_b = self._lam, self._lam_b
+        # --- boundary vertices first (umbrella operator, as flow's paper mode) -------
+        Rb = np.zeros(0, np.int64)
+        Xb = np.zeros((0, 3))
+        if info["free_b"].any():
+            Rb, Xb = self._solve_boundary(S, info)
+        # --- interior ----------------------------------------------------------------
+        R = np.flatnonzero(info["free_i"])
+        k = R.size
+        solver_used, bw = "none", 0
+        if k:
+            loc = np.full(ns, -1, dtype=np.int64)
+            loc[R] = np.arange(k)
+            cdiag = info["mass"][R] / (abs(lam) * info["w"][R])
+            U = S[R]
+            if info["rowid"] is None:   # compiled assembly (see _classify)
+                ri, ci, vi, rhs, VU = self._assemble_compiled(S, R, loc, cdiag, Rb, Xb)
+            else:
+                ri, ci, vi, rhs, VU = self._assemble_numpy(S, R, loc, cdiag, Rb, Xb, info)
+            Xi, solver_used, bw = self._local_solver.solve(k, ri, ci, vi, cdiag + info["deg"][R], rhs,
+                                                           notes=self._notes)
+            bad = ~np.isfinite(Xi).all(axis=1)
+            if bad.any():
+                Xi[bad] = VU[bad]
+        # --- result: V + sign(λ)(X − V) --------------------------------------------------
+        idx_parts, new_parts, old_parts = [], [], []
+        if Rb.size:
+            Ub = S[Rb]
+            Vb = V.take(Ub, axis=0, mode="clip")
+            idx_parts.append(Ub)
+            old_parts.append(Vb)
+            new_parts.append(Xb if lam_b >= 0 else Vb - (Xb - Vb))
+        if k:
+            idx_parts.append(U)
+            old_parts.append(VU)
+            new_parts.append(Xi if lam >= 0 else VU - (Xi - VU))
+        if not idx_parts:
+            z = np.zeros((0, 3))
+            return Dab(c, self._radius, np.zeros(0, np.int64), z, z, rim=self._perm[rim], n_inside=ns,
+                       _internal=np.zeros(0, np.int64))
+        if len(idx_parts) == 1:
+            idx, new, old = idx_parts[0], new_parts[0], old_parts[0]
+        else:
+            idx, new, old = (np.concatenate(p) for p in (idx_parts, new_parts, old_parts))
+        return Dab(c, self._radius, self._perm[idx], new, old, rim=self._perm[rim], n_inside=ns,
+                   solver=solver_used, bandwidth=bw, notes=self._notes, _internal=idx)
+
+    def _assemble_compiled(self, S, R, loc, cdiag, Rb, Xb):
+        """The interior system of a dab in one compiled pass (``brush_assemble``):
+        off-diagonal entries (ri, ci, vi), grouped by row, the right-hand side and the positions."""
+        ns, k = S.size, R.size
+        U = S[R]
+        bl = np.full(ns, -1, dtype=np.int64)
+        if Rb.size:
+            bl[Rb] = np.arange(Rb.size)
+        nent = int(self._vn_ptr.take(U + 1, mode="clip").sum() - self._vn_ptr.take(U, mode="clip").sum())
+        ri = np.empty(nent, np.int64)
+        ci = np.empty(nent, np.int64)
+        vi = np.empty(nent)
+        rhs = np.empty((k, 3))
+        VU = np.empty((k, 3))
+        m = accel.compiled("sculpt", self._n, min_size=0).brush_assemble(
+            S, R, loc, self._slot, self._vn_ptr, self._vn_nb, self._vn_pair, self._pw, self._V, cdiag, bl,
+            np.ascontiguousarray(Xb, dtype=np.float64), ri, ci, vi, rhs, VU)
+        return ri[:m], ci[:m], vi[:m], rhs, VU
+
+    def _assemble_numpy(self, S, R, loc, cdiag, Rb, Xb, info):
+        """The same system as :meth:`_assemble_compiled`, from the neighbour lists of ``_classify``."""
+        V = self._V
+        ns, k = S.size, R.size
+        rowid, snb, pwe = info["rowid"], info["snb"], info["pwe"]
+        lr = loc.take(rowid, mode="clip")
+        sel = np.flatnonzero(lr >= 0)
+        r_loc = lr.take(sel, mode="clip")
+        nbr = snb.take(sel, mode="clip")      # neighbours of free rows are all inside
+        c_loc = loc.take(nbr, mode="clip")
+        w_e = pwe.take(sel, mode="clip")
+        inm = c_loc >= 0
+        VU = V.take(S[R], axis=0, mode="clip")
+        rhs = cdiag[:, None] * VU
+        cp = np.flatnonzero(~inm)
+        if cp.size:
+            rows_c = r_loc[cp]
+            Xn = V.take(S[nbr[cp]], axis=0, mode="clip")
+            if Rb.size:
+                # neighbours solved on the boundary enter with their new (pre-sign) value
+                bl = np.full(ns, -1, dtype=np.int64)
+                bl[Rb] = np.arange(Rb.size)
+                j = bl[nbr[cp]]
+                hit = j >= 0
+                if hit.any():
+                    Xn[hit] = Xb[j[hit]]
+            wc = w_e[cp]
+            for q in range(3):
+                rhs[:, q] += np.bincount(rows_c, wc * Xn[:, q], minlength=k)
+        m = np.flatnonzero(inm)
+        return r_loc.take(m, mode="clip"), c_loc.take(m, mode="clip"), -w_e.take(m, mode="clip"), rhs, VU
+
+    def _solve_boundary(self, S: np.ndarray, info: dict):
+        """flow's boundary step on the free boundary vertices of the region."""
+        V = self._V
+        ns = S.size
+        Rb = np.flatnonzero(info["free_b"])
+        Ub = S[Rb]
+        ent, lens = csr_ranges(self._vb_ptr, Ub)
+        row = np.repeat(np.arange(Rb.size), lens)
+        nb = self._vb_nb[ent]
+        keep = self._vlock[nb] == 0             # flow drops umbrella edges with a locked end
+        row, nb = row[keep], nb[keep]
+        snb = self._slot[nb]                    # face neighbours of non-rim vertices: inside
+        diff = V.take(Ub[row], axis=0, mode="clip") - V.take(nb, axis=0, mode="clip")
+        e = 1.0 / np.sqrt(np.einsum("ij,ij->i", diff, diff))
+        Esum = np.bincount(row, e, minlength=Rb.size)
+        ok = Esum > 0
+        if not ok.all():                        # no usable umbrella edge: the vertex stays
+            sub = np.flatnonzero(ok)
+            remap = np.full(ok.size, -1, dtype=np.int64)
+            remap[sub] = np.arange(sub.size)
+            row = remap[row]
+            m = row >= 0
+            row, nb, snb, e = row[m], nb[m], snb[m], e[m]
+            Rb, Ub, Esum = Rb[sub], Ub[sub], Esum[sub]
+            if Rb.size == 0:
+                return Rb, np.zeros((0, 3))
+        kb = Rb.size
+        bloc = np.full(ns, -1, dtype=np.int64)
+        bloc[Rb] = np.arange(kb)
+        col = bloc[snb]
+        cb = Esum / (abs(self._lam_b) * info["w"][Rb])
+        rhs = cb[:, None] * V.take(Ub, axis=0, mode="clip")
+        cp = col < 0
+        if cp.any():
+            for q in range(3):
+                rhs[:, q] += np.bincount(row[cp], e[cp] * V[nb[cp], q], minlength=kb)
+        m = ~cp
+        # rows come grouped by vertex, but in the order of Rb, so sort the entries by row
+        X, _, _ = self._local_solver.solve(kb, row[m], col[m], -e[m], cb + Esum, rhs, grouped=False, notes=self._notes)
+        bad = ~np.isfinite(X).all(axis=1)
+        if bad.any():
+            X[bad] = V[Ub[bad]]
+        return Rb, X

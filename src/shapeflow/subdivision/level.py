@@ -1,0 +1,183 @@
+"""One level of subdivision as a sparse matrix over the previous level's points, and several levels."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..mesh import Topology
+from .rules import (CREASE, DART, SMOOTH, as_topology, base_sharpness, edge_point_order,
+                    face_point_matrix, vertex_rules)
+
+__all__ = ["Level", "Factored", "build_levels"]
+
+
+class Level:
+    """Connectivity of one subdivision step: numbering, new faces, sharpness."""
+
+    def __init__(self, t: Topology, edge_sharp: np.ndarray, vertex_sharp: np.ndarray,
+                 edge_order: str, threads: int):
+        self.t = t
+        self.edge_sharp = edge_sharp
+        self.vertex_sharp = vertex_sharp
+        n, E, F = t.n_vertices, t.n_edges, t.n_faces
+        self.n, self.E, self.F = n, E, F
+        self.n_new = n + E + F
+        self.eorder = edge_point_order(t, edge_order, threads)
+        erank = np.empty(E, dtype=np.int64)
+        erank[self.eorder] = np.arange(E, dtype=np.int64)
+        self.erank = erank
+
+    # --- new faces -------------------------------------------------------
+    def new_topology(self) -> Topology:
+        t = self.t
+        n, E = self.n, self.E
+        C = t.n_corners
+        sizes = t.face_sizes
+        ep = n + self.erank[t.corner_edge]          # edge point of c -> next(c)
+        cols = (t.face_indices, ep, n + E + t.corner_face, ep[t.corner_prev])
+        # Blender lays a quad's four children out on one grid: child k starts at
+        # its k-th vertex (same quads, same orientation, rotated vertex lists);
+        # the children of other faces start at the old vertex
+        if C and (sizes == 4).all():
+            rot = np.arange(C, dtype=np.int64) & 3
+        elif C and (sizes == 4).any():
+            local = np.arange(C, dtype=np.int64) - np.repeat(t.face_offsets[:-1], sizes)
+            rot = np.where(np.repeat(sizes == 4, sizes), local, 0)
+        else:
+            rot = None
+        quads = np.empty((C, 4), dtype=np.int64)
+        for j in range(4):
+            quads[:, j] = cols[j] if rot is None else np.choose((j - rot) & 3, cols)
+        idx = quads.reshape(-1)
+        off = np.arange(C + 1, dtype=np.int64) * 4
+        idx.flags.writeable = False
+        off.flags.writeable = False
+        return Topology(idx, off, self.n_new)
+
+    def child_sharpness(self, child: Topology) -> tuple[np.ndarray, np.ndarray]:
+        """Inherited sharpness on the refined level (see the module docstring)."""
+        n, E = self.n, self.E
+        ce = child.edges
+        lo, hi = ce[:, 0], ce[:, 1]
+        # halves of an old edge join an old vertex (lo < n) to its edge point
+        half = (lo < n) & (hi >= n) & (hi < n + E)
+        es = np.zeros(child.n_edges)
+        es[half] = self.edge_sharp[self.eorder[hi[half] - n]]
+        vs = np.zeros(self.n_new)
+        vs[:n] = self.vertex_sharp
+        return es, vs
+
+    # --- matrices --------------------------------------------------------
+    def simple_matrix(self) -> sp.csr_matrix:
+        t = self.t
+        n, E = self.n, self.E
+        e = t.edges[self.eorder]
+        top = sp.identity(n, format="csr")
+        mid = sp.csr_matrix((np.full(2 * E, 0.5), e.reshape(-1), np.arange(E + 1) * 2), shape=(E, n))
+        return sp.vstack([top, mid, face_point_matrix(t)], format="csr")
+
+    def catmull_clark_matrix(self) -> sp.csr_matrix:
+        P, Q = self.catmull_clark_factors()
+        return P @ Q  # no duplicates; column indices not sorted within rows
+
+    def catmull_clark_factors(self) -> tuple[sp.csr_matrix, sp.csr_matrix]:
+        """S = P @ Q: P has rows over the new points and columns over [old
+        vertices, face points]; Q = [I; face-point matrix]."""
+        t = self.t
+        n, E, F = self.n, self.E, self.F
+        rule = vertex_rules(t, self.edge_sharp, self.vertex_sharp)
+        edges = t.edges
+        a, b = edges[:, 0], edges[:, 1]
+        sharp_e = self.edge_sharp > 0
+        rows, cols, vals = [], [], []
+
+        # vertex points ----------------------------------------------------
+        k = t.vertex_edge_count.astype(np.float64)
+        smooth_v = (rule == SMOOTH) | (rule == DART)
+        crease_v = rule == CREASE
+        ids = np.arange(n, dtype=np.int64)
+        diag = np.ones(n)
+        diag[crease_v] = 0.75
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ks = np.where(smooth_v, k, 1.0)
+            diag[smooth_v] = (ks[smooth_v] - 2.0) / ks[smooth_v]
+            inv_k2 = 1.0 / (ks * ks)
+        rows.append(ids); cols.append(ids); vals.append(diag)
+        # smooth: every neighbour 1/k², every incident face point 1/k²
+        for p, q in ((a, b), (b, a)):
+            m = smooth_v[p]
+            rows.append(p[m]); cols.append(q[m]); vals.append(inv_k2[p[m]])
+            # crease: the other ends of the two sharp edges, 1/8 each
+            m = crease_v[p] & sharp_e
+            rows.append(p[m]); cols.append(q[m]); vals.append(np.full(int(m.sum()), 0.125))
+        fi = t.face_indices
+        m = smooth_v[fi]
+        rows.append(fi[m]); cols.append(n + t.corner_face[m]); vals.append(inv_k2[fi[m]])
+
+        # edge points ------------------------------------------------------
+        erow = n + self.erank
+        smooth_e = ~sharp_e & (t.edge_face_count == 2)
+        w = np.where(smooth_e, 0.25, 0.5)
+        rows += [erow, erow]; cols += [a, b]; vals += [w, w]
+        se = np.flatnonzero(smooth_e)
+        o = t.edge_corner_offsets
+        f0 = t.corner_face[t.edge_corners[o[se]]]
+        f1 = t.corner_face[t.edge_corners[o[se] + 1]]
+        q = np.full(se.size, 0.25)
+        rows += [erow[se], erow[se]]; cols += [n + f0, n + f1]; vals += [q, q]
+        # an edge that is neither sharp nor two-faced cannot occur: one-face and
+        # 3+-face edges are always sharp.
+
+        # face points ------------------------------------------------------
+        fr = np.arange(F, dtype=np.int64)
+        rows.append(n + E + fr); cols.append(n + fr); vals.append(np.ones(F))
+
+        idx = np.int32 if self.n_new + F < 2**31 - 1 else np.int64
+        r = np.concatenate(rows).astype(idx, copy=False)
+        c = np.concatenate(cols).astype(idx, copy=False)
+        v = np.concatenate(vals)
+        del rows, cols, vals
+        P = sp.coo_matrix((v, (r, c)), shape=(self.n_new, n + F)).tocsr()
+        del r, c, v
+        Q = sp.vstack([sp.identity(n, format="csr"), face_point_matrix(t)], format="csr")
+        return P, Q
+
+
+class Factored:
+    """A sparse matrix kept as a product of sparse factors, applied factor by
+    factor (cheaper than forming the product when it is used once)."""
+
+    def __init__(self, *factors):
+        self.factors = factors
+        self.shape = (factors[0].shape[0], factors[-1].shape[1])
+
+    def __matmul__(self, X):
+        for f in reversed(self.factors):
+            X = f @ X
+        return X
+
+
+def build_levels(mesh, levels, schemes, boundary, edge_order, threads, factored=False):
+    """Yield (matrices by scheme, new topology) for each level."""
+    t = as_topology(mesh)
+    smooth = "catmull-clark" in schemes
+    if smooth and levels:
+        edge_sharp, vertex_sharp = base_sharpness(t, boundary)
+    else:
+        edge_sharp = vertex_sharp = None
+    for level in range(levels):
+        lev = Level(t, edge_sharp, vertex_sharp, edge_order, threads)
+        mats = {}
+        for s in schemes:
+            if s == "simple":
+                mats[s] = lev.simple_matrix()
+            elif factored:
+                mats[s] = Factored(*lev.catmull_clark_factors())
+            else:
+                mats[s] = lev.catmull_clark_matrix()
+        child = lev.new_topology()
+        if smooth and level + 1 < levels:
+            edge_sharp, vertex_sharp = lev.child_sharpness(child)
+        yield mats, child
+        t = child
