@@ -19,8 +19,8 @@ import math
 import time
 
 from ..errors import ParameterError
-from ._common import eprint, load_mesh_arg, progress_callback, resolve_output, save_mesh
-from ._images import add_image_options
+from .common import eprint, load_mesh_arg, progress_callback, resolve_output, save_mesh
+from .images import add_image_options
 
 STROKE_KEYS = {"lambda", "radius", "points", "spacing", "falloff", "lambda_border", "brush", "strength"}
 
@@ -139,9 +139,9 @@ def run(args) -> int:
     stroke = read_stroke(args.stroke)
     out_path = resolve_output(args.input, args.output, args.force, args.image)
     if args.image:
-        from ._images import _check
+        from .images import check_picture_path
 
-        _check(args.image)
+        check_picture_path(args.image)
     mesh = load_mesh_arg(args.input)
     weights = weights_arg(args.weights, mesh)
     t0 = time.perf_counter()
@@ -160,7 +160,7 @@ def run(args) -> int:
     result = brush.mesh
     save_mesh(out_path, result, args.force)
     if args.image:
-        from ._images import before_after
+        from .images import before_after
 
         before_after(args.image, mesh, result, label_after=f"{stroke['brush']} stroke", up=args.image_up,
                      quiet=args.quiet)

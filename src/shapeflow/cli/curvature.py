@@ -7,7 +7,7 @@ import os
 import numpy as np
 
 from ..errors import ParameterError
-from ._common import eprint, load_mesh_arg, resolve_output, save_mesh, write_values
+from .common import eprint, load_mesh_arg, resolve_output, save_mesh, write_values
 
 VALUE_EXTS = (".npy", ".txt")
 

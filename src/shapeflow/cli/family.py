@@ -19,8 +19,8 @@ from ..errors import ParameterError
 from .. import params
 from ..geometry import refresh_normals
 from ..io import output_target
-from ._common import eprint, load_mesh_arg, progress_callback, save_mesh
-from .flow import _add_common, flow_kwargs
+from .common import eprint, load_mesh_arg, progress_callback, save_mesh
+from .flow import add_flow_options, flow_kwargs
 
 #: members solved in one batch are held in memory together; above this many
 #: bytes of positions the family is solved in batches (in order of |λ|)
@@ -38,7 +38,7 @@ def register(sub) -> None:
                     "is solved on one shared operator.  Flow options as for 'shapeflow flow'.",
         epilog="Figure 1 of the paper: shapeflow family IN OUTDIR --from 0 --to -240 --step -5 "
                "(48 members, λ = 0, -5, ..., -235).")
-    _add_common(p)
+    add_flow_options(p)
     _retitle(p, "output", metavar="OUTDIR",
              help="directory for the members (created if missing); files NAME_INDEX_lamVALUE.EXT")
     _retitle(p, "force", help="overwrite member files that already exist in OUTDIR")
@@ -61,7 +61,7 @@ def register(sub) -> None:
 
 
 def _retitle(parser, dest: str, **kw) -> None:
-    """Change the help (or metavar) of an option that ``_add_common`` defined."""
+    """Change the help (or metavar) of an option that ``add_flow_options`` defined."""
     for action in parser._actions:
         if action.dest == dest:
             for key, value in kw.items():
@@ -153,9 +153,9 @@ def run(args) -> int:
     lams = lams_from_args(args)
     image = getattr(args, "image", None)
     if image:
-        from ._images import _check
+        from .images import check_picture_path
 
-        _check(image)  # a bad picture path fails before any work
+        check_picture_path(image)  # a bad picture path fails before any work
     # members drawn in the --image strip: at most 12, evenly spaced, first and last included
     panels = sorted(set(np.linspace(0, len(lams) - 1, min(12, len(lams))).round().astype(int).tolist()))
     kept = {}
@@ -204,7 +204,7 @@ def run(args) -> int:
                 if cb is not None:
                     cb(done, 2 * len(lams))
     if image:
-        from ._images import family_image
+        from .images import family_image
 
         family_image(image, [mesh.with_vertices(kept[i]) for i in panels], [lams[i] for i in panels],
                      up=args.image_up, quiet=args.quiet)

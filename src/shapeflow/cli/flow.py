@@ -6,11 +6,11 @@ import os
 import time
 
 from ..errors import ParameterError
-from ._common import eprint, load_mesh_arg, progress_callback, resolve_output, save_mesh
-from ._images import add_image_options
+from .common import eprint, load_mesh_arg, progress_callback, resolve_output, save_mesh
+from .images import add_image_options
 
 
-def _add_common(p) -> None:
+def add_flow_options(p) -> None:
     p.add_argument("input", help="mesh file (OBJ/PLY/OFF) or example:NAME")
     p.add_argument("output", help="where to write the result (format from the extension)")
     p.add_argument("--lambda-border", type=float, default=0.0, metavar="B",
@@ -41,14 +41,14 @@ def _add_common(p) -> None:
 def register(sub) -> None:
     p = sub.add_parser("flow", help="smooth (λ > 0) or enhance (λ < 0) with a signed λ",
                        description="Implicit TQLBO curvature flow (eq. 11): λ > 0 smooths, λ < 0 enhances.")
-    _add_common(p)
+    add_flow_options(p)
     p.add_argument("--lambda", dest="lam", type=float, required=True, metavar="L",
                    help="signed λ: > 0 smooths, < 0 enhances (figures of the paper: +90 .. -400)")
     p.set_defaults(func=run, sign=None)
     for name, sign, text in (("enhance", -1.0, "exaggerate the shape (λ = -strength)"),
                              ("smooth", 1.0, "smooth the shape (λ = +strength)")):
         q = sub.add_parser(name, help=text, description=f"{text[0].upper()}{text[1:]}.")
-        _add_common(q)
+        add_flow_options(q)
         q.add_argument("--strength", "-s", type=float, required=True, metavar="S", help="strength >= 0")
         q.set_defaults(func=run, sign=sign)
 
@@ -97,6 +97,6 @@ def run(args) -> int:
         eprint(f"shapeflow {args.command}: λ={lam:g}, {args.iterations} iteration(s), {mesh.n_vertices} vertices: "
                f"{r.summary()}; total {time.perf_counter() - t0:.3f} s -> {out_path}")
     if args.image:
-        from ._images import flow_image
+        from .images import flow_image
         flow_image(args, mesh, result, lam)
     return 0

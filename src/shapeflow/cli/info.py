@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._common import load_mesh_arg
+from .common import load_mesh_arg
 
 
 def register(sub) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 
 from ..errors import ParameterError
-from ._common import eprint, load_mesh_arg
+from .common import eprint, load_mesh_arg
 
 
 def register(sub) -> None:

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import eprint, load_mesh_arg, progress_callback, resolve_output, save_mesh, write_values
-from ._images import add_image_options
+from .common import eprint, load_mesh_arg, progress_callback, resolve_output, save_mesh, write_values
+from .images import add_image_options
 
 
 def register(sub) -> None:
@@ -85,6 +85,6 @@ def run(args) -> int:
         f"({args.scheme}, {args.levels} level{'s' if args.levels != 1 else ''}) in {dt:.3f} s"
     )
     if args.image:
-        from ._images import subdivide_image
+        from .images import subdivide_image
         subdivide_image(args, mesh, out)
     return 0

@@ -164,21 +164,15 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
     return_report = params.flag("return_report", return_report)
     params.progress(progress)
     flow_solver = FlowSolver(mesh, lam_border=lam_border, normalized=normalized, weights=weights,
-                    invert_weights=invert_weights, scheme=scheme, compat=compat, solver=solver, rtol=rtol)
+                             invert_weights=invert_weights, scheme=scheme, compat=compat, solver=solver, rtol=rtol)
     if flow_solver.pow2:   # extreme coordinates: the family of the exact power-of-two copy, scaled back
         e = flow_solver.pow2
-        lams_in = lam_arr if normalized else np.ldexp(lam_arr, -2 * e)
-        res = family(flow_solver.mesh, lams_in, lam_border=lam_border, iterations=iterations, normalized=normalized,
-                     weights=flow_solver.w, preserve_volume=preserve_volume, axes=axes, scheme=scheme, update=update,
-                     compat=compat, solver=solver, rtol=rtol, strategy=strategy, progress=progress,
-                     return_report=True)
-        shapes, rep = res
-        rep.lams = lam_arr
-        with np.errstate(over="ignore"):
-            shapes = np.ldexp(shapes, e)
-        if not np.isfinite(shapes).all():
-            raise ParameterError("lams: the result leaves the range of double precision (|x| > 1.8e308)")
-        rep.notes.append(f"computed on the coordinates scaled by 2^{-e} (exact), then scaled back")
+        shapes, rep = family(flow_solver.mesh, lam_arr if normalized else np.ldexp(lam_arr, -2 * e),
+                             lam_border=lam_border, iterations=iterations, normalized=normalized,
+                             weights=flow_solver.w, preserve_volume=preserve_volume, axes=axes, scheme=scheme,
+                             update=update, compat=compat, solver=solver, rtol=rtol, strategy=strategy,
+                             progress=progress, return_report=True)
+        shapes = scaled_back(shapes, rep, lam_arr, e)
         return (shapes, rep) if return_report else shapes
     ax = check_run_options(iterations, update, axes, flow_solver.blender)
     k, n = lam_arr.size, mesh.n_vertices
@@ -204,17 +198,7 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
         return (out, report) if return_report else out
 
     # --- nothing to do: the conditions of FlowSolver.run(), for every member
-    nothing = None
-    if iterations == 0:
-        nothing = "iterations=0"
-    elif not ax.any():
-        nothing = "no axis may change"
-    elif not (flow_solver.w > 0).any():
-        nothing = "every weight is 0"
-    elif mesh.n_faces == 0:
-        nothing = "the mesh has no faces"
-    elif not lam_arr.any() and flow_solver.lam_border == 0.0:
-        nothing = "every λ and λ_b are 0"
+    nothing = nothing_to_do(flow_solver, lam_arr, iterations, ax)
     if nothing is not None:
         report.reason = nothing
         out = np.broadcast_to(V0, (k, n, 3)).copy()
@@ -226,20 +210,7 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
     report.degenerate_triangles = op.n_bad
     report.boundary_vertices = int(op.boundary.sum())
 
-    # --- which path
-    why_not = None
-    if iterations > 1:
-        why_not = (f"{iterations} iterations: from the second step on the right-hand sides differ "
-                   "per member, so the systems are no longer shifts of one")
-    elif flow_solver.solver_method in ("cholesky", "lu"):
-        why_not = f"solver={flow_solver.solver_method!r} was asked for"
-    plan = None
-    if strategy == "separate":
-        why_not = "strategy='separate' was asked for"
-    elif why_not is None:
-        plan = plan_shared_solve(flow_solver, op, lam_arr, report.notes)
-        if isinstance(plan, str):
-            why_not, plan = plan, None
+    why_not, plan = choose_path(flow_solver, op, lam_arr, iterations, strategy, report.notes)
     if strategy == "multishift" and why_not is not None:
         raise ParameterError(f"the multi-shift solve does not apply here: {why_not}")
 
@@ -256,8 +227,52 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
     out = shared_solve(flow_solver, op, plan, lam_arr, ax, preserve_volume, report, tick)
     if report.fallback_members:
         separate_solves(flow_solver, lam_arr, report.fallback_members, out, report, iterations=iterations,
-                  preserve_volume=preserve_volume, axes=ax, update=update, tick=tick)
+                        preserve_volume=preserve_volume, axes=ax, update=update, tick=tick)
     return finish(out)
+
+
+def scaled_back(shapes: np.ndarray, report: FamilyReport, lams: np.ndarray, e: int) -> np.ndarray:
+    """Shapes computed on the input scaled by 2^-e, back at the input's scale (exact)."""
+    report.lams = lams
+    with np.errstate(over="ignore"):
+        shapes = np.ldexp(shapes, e)
+    if not np.isfinite(shapes).all():
+        raise ParameterError("lams: the result leaves the range of double precision (|x| > 1.8e308)")
+    report.notes.append(f"computed on the coordinates scaled by 2^{-e} (exact), then scaled back")
+    return shapes
+
+
+def nothing_to_do(flow_solver: FlowSolver, lams: np.ndarray, iterations: int, ax: np.ndarray) -> str | None:
+    """Why no member moves (the conditions of ``FlowSolver.run``, for every member), or None."""
+    if iterations == 0:
+        return "iterations=0"
+    if not ax.any():
+        return "no axis may change"
+    if not (flow_solver.w > 0).any():
+        return "every weight is 0"
+    if flow_solver.mesh.n_faces == 0:
+        return "the mesh has no faces"
+    if not lams.any() and flow_solver.lam_border == 0.0:
+        return "every λ and λ_b are 0"
+    return None
+
+
+def choose_path(flow_solver: FlowSolver, op, lams: np.ndarray, iterations: int, strategy: str, notes: list):
+    """(why the shared solve does not apply or None, its plan or None)."""
+    why_not = None
+    if iterations > 1:
+        why_not = (f"{iterations} iterations: from the second step on the right-hand sides differ "
+                   "per member, so the systems are no longer shifts of one")
+    elif flow_solver.solver_method in ("cholesky", "lu"):
+        why_not = f"solver={flow_solver.solver_method!r} was asked for"
+    plan = None
+    if strategy == "separate":
+        why_not = "strategy='separate' was asked for"
+    elif why_not is None:
+        plan = plan_shared_solve(flow_solver, op, lams, notes)
+        if isinstance(plan, str):
+            why_not, plan = plan, None
+    return why_not, plan
 
 
 def family_meshes(mesh: Mesh, lams: Sequence[float], **options) -> list[Mesh]:

@@ -94,8 +94,9 @@ def boundary_solve(flow_solver: FlowSolver, op, V: np.ndarray):
     return flow_solver.systems.solve_boundary(V, boundary_sys), boundary_sys
 
 
-def shared_solve(flow_solver: FlowSolver, op, plan: SharedPlan, lams: np.ndarray, ax: np.ndarray, preserve_volume: bool,
-                report: FamilyReport, tick) -> np.ndarray:
+def shared_solve(flow_solver: FlowSolver, op, plan: SharedPlan, lams: np.ndarray, ax: np.ndarray,
+                 preserve_volume: bool, report: FamilyReport, tick) -> np.ndarray:
+    """Every member that shares the seed's Krylov space, from one multi-shift CG (see ``family``)."""
     mesh = flow_solver.mesh
     V = mesh.vertices
     n, k = V.shape[0], lams.size
@@ -124,22 +125,8 @@ def shared_solve(flow_solver: FlowSolver, op, plan: SharedPlan, lams: np.ndarray
         report.notes.append(plan.note)
     solved = plan.member_shift >= 0
     if interior_sys is not None and solved.any():
-        # r0 = b − A X for the seed (λ-independent: g − K V on free rows, 0 elsewhere)
-        r_, s_, e_ = interior_sys.coupling
-        free = interior_sys.free
-        rhs = np.where(free[:, None], interior_sys.c[:, None] * V, X)
-        if r_.size:
-            for j in range(3):
-                rhs[:, j] += np.bincount(r_, e_ * X[s_, j], minlength=n)
-        A = interior_sys.A
-        cols = np.flatnonzero(ax)
-        R0 = np.empty((cols.size, n))
-        for t, j in enumerate(cols):
-            R0[t] = (rhs[:, j] - A @ X[:, j]) * plan.scale
-        # the seed matrix scaled: S A S = σ_seed I + M on free rows, I elsewhere
+        R0, As, cols = seed_system(interior_sys, plan.scale, V, X, ax)
         S = plan.scale
-        As = A.copy()
-        As.data *= np.repeat(S, np.diff(As.indptr)) * S[As.indices]
         deltas = plan.sigmas - plan.sigmas[0]
         member_of_shift = [np.flatnonzero(plan.member_shift == i) for i in range(plan.sigmas.size)]
         counted = np.zeros(plan.sigmas.size, bool)
@@ -174,17 +161,46 @@ def shared_solve(flow_solver: FlowSolver, op, plan: SharedPlan, lams: np.ndarray
     elif solved.any():
         tick(int(solved.sum()))                             # no free interior vertex: boundary moves only
     if preserve_volume:
-        center0 = V.mean(axis=0)
-        skip = set(report.fallback_members)
-        for m in range(k):
-            moved = (lams[m] != 0.0 and interior_sys is not None) or boundary_sys is not None
-            if m in skip or not moved:
-                continue   # flow() returns the input unchanged there ("no free vertex"): no rescale
-            r = FlowReport(lam=float(lams[m]), lam_border=flow_solver.lam_border, iterations=1, mode=report.mode,
-                           scheme=report.scheme, update=report.update)
-            out[m] = flow_solver.systems.rescale_volume(V, out[m], ax, center0, r)
-            report.notes.extend(r.notes)
+        has_interior, has_boundary = interior_sys is not None, boundary_sys is not None
+        rescale_members(flow_solver, out, lams, ax, report,
+                        moved=lambda m: (lams[m] != 0.0 and has_interior) or has_boundary)
     return out
+
+
+def seed_system(interior_sys, S: np.ndarray, V: np.ndarray, X: np.ndarray, ax: np.ndarray):
+    """The shared solve's right-hand sides and matrix: the seed's initial residuals r0 = b − A X
+    (λ-independent: g − K V on free rows, 0 elsewhere) and S A S = σ_seed I + M (I off the free
+    rows), both scaled by ``S`` = C_1^{-1/2}; and the columns (axes) solved."""
+    n = V.shape[0]
+    r_, s_, e_ = interior_sys.coupling
+    free = interior_sys.free
+    rhs = np.where(free[:, None], interior_sys.c[:, None] * V, X)
+    if r_.size:
+        for j in range(3):
+            rhs[:, j] += np.bincount(r_, e_ * X[s_, j], minlength=n)
+    A = interior_sys.A
+    cols = np.flatnonzero(ax)
+    R0 = np.empty((cols.size, n))
+    for t, j in enumerate(cols):
+        R0[t] = (rhs[:, j] - A @ X[:, j]) * S
+    As = A.copy()
+    As.data *= np.repeat(S, np.diff(As.indptr)) * S[As.indices]
+    return R0, As, cols
+
+
+def rescale_members(flow_solver: FlowSolver, out: np.ndarray, lams: np.ndarray, ax: np.ndarray,
+                    report: FamilyReport, moved) -> None:
+    """Volume preservation of each member solved in the shared solve, as ``FlowSolver.run`` does it."""
+    V = flow_solver.mesh.vertices
+    center0 = V.mean(axis=0)
+    skip = set(report.fallback_members)
+    for m in range(lams.size):
+        if m in skip or not moved(m):
+            continue   # flow() returns the input unchanged there ("no free vertex"): no rescale
+        r = FlowReport(lam=float(lams[m]), lam_border=flow_solver.lam_border, iterations=1, mode=report.mode,
+                       scheme=report.scheme, update=report.update)
+        out[m] = flow_solver.systems.rescale_volume(V, out[m], ax, center0, r)
+        report.notes.extend(r.notes)
 
 
 def separate_solves(flow_solver: FlowSolver, lams: np.ndarray, members, out: np.ndarray, report: FamilyReport, *,

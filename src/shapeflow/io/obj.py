@@ -26,7 +26,7 @@ def read_obj(data: bytes, name: str) -> Mesh:
     txt = Text(data, name, comments=True, continuations=True)
     if txt.n_records == 0:
         raise MeshError(f"{name}: no vertices (the file has only comments or blank lines)")
-    rf, rc = txt.rec_first, txt.rec_count
+    rf = txt.rec_first
     a = np.frombuffer(txt.data + b"  ", dtype=np.uint8)
     s = txt.start[rf]
     tlen = txt.end[rf] - s
@@ -36,42 +36,60 @@ def read_obj(data: bytes, name: str) -> Mesh:
     common = (tlen == 2) & (c0 == ord("v")) & ((c1 == ord("t")) | (c1 == ord("n")))
     other = np.flatnonzero(~(is_v | is_f | common))   # other tags (g, o, s, usemtl...): skipped if tag-like
     if other.size:
-        so, lo = s[other], tlen[other]
-        # a tag must be a letter or '_' followed by letters, digits, '_', '.', '-'
-        chars = a[ranges(so, lo)]
-        ok = TAG_CHAR[chars]
-        first_ok = TAG_START[a[so]]
-        tag_ok = first_ok & (np.add.reduceat(~ok, np.cumsum(lo) - lo) == 0 if chars.size else first_ok)
-        # an element tag glued to its first number ('f1 2 3', 'v0.5 1 2') is a typo, not a new tag
-        c1o = a[so + 1]
-        k = np.where((a[so] == ord("v")) & np.isin(c1o, np.frombuffer(b"tnp", np.uint8)) & (lo > 2), 2, 1)
-        glued = np.isin(a[so], np.frombuffer(b"vflp", np.uint8)) & (lo > k) & NUMBER_START[a[so + k]]
-        bad = np.flatnonzero(~tag_ok | glued)
-        if bad.size:
-            r = int(other[bad[0]])
-            tok = txt.token(rf[r])
-            hint = " (a space missing after the tag?)" if glued[bad[0]] else ""
-            raise txt.error(rf[r], f"unrecognised line starting with {tok}{hint}")
-
-    # vertices: x y z [w] or x y z r g b [a]
+        _check_tags(txt, a, other, s[other], tlen[other])
     vrec = np.flatnonzero(is_v)
+    vertices = _vertices(txt, vrec, name)
+    frec = np.flatnonzero(is_f)
+    ffirst = rf[frec]
+    sizes, idx = _faces(txt, a, frec, vrec)
+    vfirst = rf[vrec]
+    return build_mesh(name, vertices, sizes, idx,
+                      where_vertex=lambda i: f"line {txt.lineno(vfirst[i])}",
+                      where_face=lambda f: f"line {txt.lineno(ffirst[f])}")
+
+
+def _check_tags(txt: Text, a: np.ndarray, other: np.ndarray, so: np.ndarray, lo: np.ndarray) -> None:
+    """Lines with other tags are skipped, if the tag looks like one (else: the line is an error)."""
+    rf = txt.rec_first
+    # a tag must be a letter or '_' followed by letters, digits, '_', '.', '-'
+    chars = a[ranges(so, lo)]
+    ok = TAG_CHAR[chars]
+    first_ok = TAG_START[a[so]]
+    tag_ok = first_ok & (np.add.reduceat(~ok, np.cumsum(lo) - lo) == 0 if chars.size else first_ok)
+    # an element tag glued to its first number ('f1 2 3', 'v0.5 1 2') is a typo, not a new tag
+    c1o = a[so + 1]
+    k = np.where((a[so] == ord("v")) & np.isin(c1o, np.frombuffer(b"tnp", np.uint8)) & (lo > 2), 2, 1)
+    glued = np.isin(a[so], np.frombuffer(b"vflp", np.uint8)) & (lo > k) & NUMBER_START[a[so + k]]
+    bad = np.flatnonzero(~tag_ok | glued)
+    if bad.size:
+        r = int(other[bad[0]])
+        tok = txt.token(rf[r])
+        hint = " (a space missing after the tag?)" if glued[bad[0]] else ""
+        raise txt.error(rf[r], f"unrecognised line starting with {tok}{hint}")
+
+
+def _vertices(txt: Text, vrec: np.ndarray, name: str) -> np.ndarray:
+    """Positions of the 'v' records: x y z [w] or x y z r g b [a]."""
     n = vrec.size
     if n == 0:
         raise MeshError(f"{name}: no vertices (no 'v' lines)")
-    vfirst = rf[vrec]
-    nval = rc[vrec] - 1
+    vfirst = txt.rec_first[vrec]
+    nval = txt.rec_count[vrec] - 1
     if not (nval == 3).all():
         bad = np.flatnonzero(~np.isin(nval, (3, 4, 6, 7)))
         if bad.size:
             i = int(bad[0])
             raise txt.error(vfirst[i], f"vertex line has {int(nval[i])} values; expected x y z [w] or x y z r g b")
     vtok = (vfirst[:, None] + np.arange(1, 4)).reshape(-1)  # x y z, after the tag
-    vertices = txt.parse(vtok, np.float64, "vertex coordinate").reshape(n, 3)
+    return txt.parse(vtok, np.float64, "vertex coordinate").reshape(n, 3)
 
-    # faces: f a a/b a//c a/b/c, 1-based or negative (relative to the vertices so far)
-    frec = np.flatnonzero(is_f)
-    ffirst = rf[frec]
-    sizes = rc[frec] - 1
+
+def _faces(txt: Text, a: np.ndarray, frec: np.ndarray, vrec: np.ndarray):
+    """Sizes and 0-based vertex indices of the 'f' records: a a/b a//c a/b/c, 1-based or negative
+    (relative to the vertices so far)."""
+    n = vrec.size
+    ffirst = txt.rec_first[frec]
+    sizes = txt.rec_count[frec] - 1
     small = np.flatnonzero(sizes < 3)
     if small.size:
         i = int(small[0])
@@ -106,9 +124,7 @@ def read_obj(data: bytes, name: str) -> Mesh:
     if bad.size:
         c = int(bad[0])
         raise txt.error(ftok[c], f"vertex index {int(raw[c])} out of range: the file has {n} vertices")
-    return build_mesh(name, vertices, sizes, idx,
-                      where_vertex=lambda i: f"line {txt.lineno(vfirst[i])}",
-                      where_face=lambda f: f"line {txt.lineno(ffirst[f])}")
+    return sizes, idx
 
 
 def write_obj(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None) -> None:

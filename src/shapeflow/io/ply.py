@@ -319,45 +319,66 @@ def read_ply(data: bytes, name: str) -> Mesh:
         line = data.count(b"\n", 0, exc.start) + 1
         raise MeshError(f"{name}: line {line}: PLY header is not UTF-8 text") from None
     order, elements = _parse_ply_header(header, name)
-    body = data[m.end():]
-    found: dict[str, dict] = {}
-    if order is None:  # ASCII
-        if b"\x00" in body:
-            line = data.count(b"\n", 0, m.end() + body.find(b"\x00")) + 1
-            raise MeshError(f"{name}: line {line}: binary data (NUL byte) in an ASCII PLY file")
-        txt = Text(body, name, line_offset=data.count(b"\n", 0, m.end()))
-        r = 0
-        for el in elements:
-            values = _read_ascii_element(txt, r, el, name)
-            found.setdefault(el.name, values)
-            r += el.count
-        if r < txt.n_records:
-            raise txt.error(txt.rec_first[r], "unexpected data after the last element "
-                            "(wrong counts in the header?)")
-        vloc = lambda i: f"line {txt.lineno(txt.rec_first[_first_record(elements, 'vertex') + i])}"  # noqa: E731
-        floc = lambda f: f"line {txt.lineno(txt.rec_first[_first_record(elements, 'face') + f])}"  # noqa: E731
+    if order is None:
+        found, vloc, floc = _read_ascii_body(data, m.end(), elements, name)
     else:
-        arr = np.frombuffer(body, dtype=np.uint8)
-        pos = 0
-        for el in elements:
-            values, pos = _read_binary_element(body, arr, pos, el, name)
-            found.setdefault(el.name, values)
-        if pos < len(body) and body[pos:].strip():
-            last = elements[-1].name if elements else "header"
-            raise MeshError(f"{name}: {len(body) - pos} bytes of unexpected data after the last element "
-                            f"('{last}'); wrong counts in the header?")
-        vloc = floc = None  # messages name "vertex i" / "face f" already
-
+        found, vloc, floc = _read_binary_body(data[m.end():], elements, name)
     vel = next((el for el in elements if el.name == "vertex"), None)
     if vel is None:
         raise MeshError(f"{name}: PLY file has no 'vertex' element")
-    vals = found["vertex"]
+    vertices, attributes = _vertex_data(vel, found["vertex"], name, vloc)
+    fel = next((el for el in elements if el.name == "face"), None)
+    if fel is None:
+        sizes, idx = np.zeros(0, np.int64), np.zeros(0, np.int64)
+    else:
+        sizes, idx = _face_data(fel, found["face"], vertices.shape[0], name, floc)
+    return build_mesh(name, vertices, sizes, idx, attributes=attributes, where_vertex=vloc, where_face=floc)
+
+
+def _read_ascii_body(data: bytes, start: int, elements: list[_Element], name: str):
+    """Values of every element of an ASCII body, and where-functions for vertex and face messages."""
+    body = data[start:]
+    if b"\x00" in body:
+        line = data.count(b"\n", 0, start + body.find(b"\x00")) + 1
+        raise MeshError(f"{name}: line {line}: binary data (NUL byte) in an ASCII PLY file")
+    txt = Text(body, name, line_offset=data.count(b"\n", 0, start))
+    found: dict[str, dict] = {}
+    r = 0
+    for el in elements:
+        values = _read_ascii_element(txt, r, el, name)
+        found.setdefault(el.name, values)
+        r += el.count
+    if r < txt.n_records:
+        raise txt.error(txt.rec_first[r], "unexpected data after the last element "
+                        "(wrong counts in the header?)")
+    vloc = lambda i: f"line {txt.lineno(txt.rec_first[_first_record(elements, 'vertex') + i])}"  # noqa: E731
+    floc = lambda f: f"line {txt.lineno(txt.rec_first[_first_record(elements, 'face') + f])}"  # noqa: E731
+    return found, vloc, floc
+
+
+def _read_binary_body(body: bytes, elements: list[_Element], name: str):
+    """Values of every element of a binary body (messages name "vertex i" / "face f" already)."""
+    found: dict[str, dict] = {}
+    arr = np.frombuffer(body, dtype=np.uint8)
+    pos = 0
+    for el in elements:
+        values, pos = _read_binary_element(body, arr, pos, el, name)
+        found.setdefault(el.name, values)
+    if pos < len(body) and body[pos:].strip():
+        last = elements[-1].name if elements else "header"
+        raise MeshError(f"{name}: {len(body) - pos} bytes of unexpected data after the last element "
+                        f"('{last}'); wrong counts in the header?")
+    return found, None, None
+
+
+def _vertex_data(vel: _Element, vals: dict, name: str, vloc):
+    """Positions and the other scalar properties (attributes keep the file's type: ASCII integers
+    are parsed as float64, checked, then cast back)."""
     scal = {p.name: p for p in vel.props if not p.is_list}
     for axis in "xyz":
         if axis not in scal:
             raise MeshError(f"{name}: line {vel.line}: the vertex element has no scalar '{axis}' property")
     vertices = np.column_stack([np.asarray(vals[a], dtype=np.float64) for a in "xyz"])
-    # attributes keep the file's type (ASCII integers are parsed as float64, checked, then cast back)
     attributes = {}
     for p in vel.props:
         if p.is_list or p.name in ("x", "y", "z"):
@@ -373,33 +394,33 @@ def read_ply(data: bytes, name: str) -> Mesh:
                                     f"property '{p.name}' is {np.dtype(dt).name} but has the value {v[i]!r}"))
         # ASCII floats keep the text's precision (parsed as float64); everything else its declared type
         attributes[p.name] = v if (dt.kind == "f" and v.dtype == np.float64) else v.astype(dt)
-    nv = vertices.shape[0]
-    fel = next((el for el in elements if el.name == "face"), None)
-    if fel is None:
-        sizes, idx = np.zeros(0, np.int64), np.zeros(0, np.int64)
-    else:
-        lists = [p for p in fel.props if p.is_list]
-        named = [p for p in lists if p.name in _FACE_LISTS]
-        plist = named[0] if named else (lists[0] if len(lists) == 1 else None)
-        if plist is None:
-            raise MeshError(f"{name}: line {fel.line}: the face element has no 'vertex_indices' list")
-        if plist.dtype.kind not in "iu":
-            raise MeshError(f"{name}: line {fel.line}: face '{plist.name}' must be an integer list")
-        sizes, idx = found["face"][plist.name]
-        sizes = np.asarray(sizes, dtype=np.int64)
-        idx = np.asarray(idx, dtype=np.int64)
-        where = floc if floc is not None else (lambda f: None)
-        small = np.flatnonzero(sizes < 3)
-        if small.size:
-            f = int(small[0])
-            raise MeshError(_at(name, where(f), f"face {f} has {int(sizes[f])} corners; a face needs at least 3"))
-        bad = np.flatnonzero((idx < 0) | (idx >= nv))
-        if bad.size:
-            c = int(bad[0])
-            f = int(np.searchsorted(np.cumsum(sizes), c, side="right"))
-            raise MeshError(_at(name, where(f), f"face {f} refers to vertex {int(idx[c])}, "
-                                f"out of range [0, {nv})"))
-    return build_mesh(name, vertices, sizes, idx, attributes=attributes, where_vertex=vloc, where_face=floc)
+    return vertices, attributes
+
+
+def _face_data(fel: _Element, vals: dict, nv: int, name: str, floc):
+    """Sizes and vertex indices of the face element's vertex list, checked."""
+    lists = [p for p in fel.props if p.is_list]
+    named = [p for p in lists if p.name in _FACE_LISTS]
+    plist = named[0] if named else (lists[0] if len(lists) == 1 else None)
+    if plist is None:
+        raise MeshError(f"{name}: line {fel.line}: the face element has no 'vertex_indices' list")
+    if plist.dtype.kind not in "iu":
+        raise MeshError(f"{name}: line {fel.line}: face '{plist.name}' must be an integer list")
+    sizes, idx = vals[plist.name]
+    sizes = np.asarray(sizes, dtype=np.int64)
+    idx = np.asarray(idx, dtype=np.int64)
+    where = floc if floc is not None else (lambda f: None)
+    small = np.flatnonzero(sizes < 3)
+    if small.size:
+        f = int(small[0])
+        raise MeshError(_at(name, where(f), f"face {f} has {int(sizes[f])} corners; a face needs at least 3"))
+    bad = np.flatnonzero((idx < 0) | (idx >= nv))
+    if bad.size:
+        c = int(bad[0])
+        f = int(np.searchsorted(np.cumsum(sizes), c, side="right"))
+        raise MeshError(_at(name, where(f), f"face {f} refers to vertex {int(idx[c])}, "
+                            f"out of range [0, {nv})"))
+    return sizes, idx
 
 
 def _at(name: str, where: str | None, msg: str) -> str:

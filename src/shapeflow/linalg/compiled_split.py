@@ -207,8 +207,8 @@ def _half_ints(iv, n, kd, t, nS):
 
 
 @njit(parallel=True, cache=True)
-def split_solve(pbtrf, tbtrs, potrf, potrs, trsm, syrk, gemm, set_threads,
-                ri, ci, vi, diag, rhs, perm, inv, dims, buf, X):
+def split_solve(pbtrf, tbtrs, potrf, potrs, trsm, syrk, gemm, set_threads,  # long: one compiled kernel whose
+                ri, ci, vi, diag, rhs, perm, inv, dims, buf, X):         # two prange phases share the halves' buffers
     """Solve the SPD system (off-diagonal entries ``(ri, ci, vi)``, both triangles;
     diagonal ``diag``; three right-hand sides) in the order of :func:`split_order`.
 

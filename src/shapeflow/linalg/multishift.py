@@ -10,7 +10,7 @@ import numpy as np
 from ..errors import ParameterError
 from .spd import DEFAULT_RTOL
 
-__all__ = ["BLOCK_BYTES", "MultiShiftResult", "multishift_cg"]
+__all__ = ["BLOCK_BYTES", "MultiShiftResult", "multishift_cg", "shifted_coefficients", "ShiftedBlock"]
 
 
 #: memory for the block of stored seed residuals (the rest is O(k·n))
@@ -80,9 +80,8 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
         raise ParameterError("shifts must be finite")
     order = np.argsort(shifts, kind="stable")           # hardest (smallest shift) first
     inv = np.argsort(order)
-    s_sorted = shifts[order]
-    seed = float(s_sorted[0])
-    delta = (s_sorted - seed)[:, None]                  # (k, 1) >= 0
+    seed = float(shifts[order][0])
+    delta = (shifts[order] - seed)[:, None]             # (k, 1) >= 0
     if maxiter is None:
         maxiter = max(200, 10 * int(np.sqrt(n)) + 100)
     cap = int(max(8, min(maxiter + 1, block_bytes // max(1, 8 * c * n))))
@@ -93,51 +92,14 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
     iterations = np.where(active, -1, 0)
     if not active.any():
         return MultiShiftResult(np.zeros((c, k, n)), iterations[inv], ~active[inv], 0, 0)
-    X = np.empty((c, k, n))                             # written by the first flush
-    Rb = np.empty((c, cap, n))                          # the block's seed residuals; r is always Rb[:, used-1]
-    Rb[:, 0] = B
-    used = 1
-    r_spare = np.empty_like(B)                          # the new residual when the block is full
+    blk = ShiftedBlock(B, k, cap)
     p = B.copy()
     Ap = np.zeros_like(B)                               # stays 0 in columns that never run
-    P = None                                            # block-start directions P_s (c, kp, n), after a first block
-    Cf = np.zeros((c, k, cap))                          # p_s = a_s P_s + Σ_t Cf[t] Rb[t]
-    Xf = np.zeros((c, k, cap))                          # x_s = X_s + xa_s P_s + Σ_t Xf[t] Rb[t]
-    a = np.zeros((c, k))
-    xa = np.zeros((c, k))
-    Cf[:, :, 0] = 1.0                                   # p_s(0) = r(0) for every shift
     zeta = np.ones((k, c))
     zeta_prev = np.ones((k, c))
     alpha_prev = np.ones(c)
     beta_prev = np.zeros(c)
-    flushes = 0
-    done_prev = ~active.any(axis=1)
-    if progress is not None and done_prev.any():
-        progress(done_prev[inv])
-
-    def flush(kx: int, ka: int) -> None:
-        """Fold the block into X (shifts [:kx], all that were active in it) and P ([:ka], still active)."""
-        nonlocal P, flushes
-        flushes += 1
-        Rv = Rb[:, :used]
-        for j in range(c):
-            if flushes == 1:                             # X is still empty: write, don't accumulate
-                np.matmul(Xf[j, :kx, :used], Rv[j], out=X[j, :kx])
-                X[j, kx:] = 0.0
-                continue
-            if P is not None:
-                for s_ in np.flatnonzero(xa[j, :kx]):
-                    X[j, s_] += xa[j, s_] * P[j, s_]
-            X[j, :kx] += Xf[j, :kx, :used] @ Rv[j]
-        if ka:
-            if P is None:
-                P = np.empty((c, ka, n))
-                for j in range(c):
-                    np.matmul(Cf[j, :ka, :used], Rv[j], out=P[j])
-            else:
-                for j in range(c):
-                    P[j, :ka] *= a[j, :ka, None]
-                    P[j, :ka] += Cf[j, :ka, :used] @ Rv[j]
+    done_prev = report_progress(progress, active, inv, None)
 
     it = 0
     k_blk = k                                           # shifts active at the start of the block
@@ -146,7 +108,7 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
             cols = active.any(axis=0)                    # columns still running
             ka = int(np.flatnonzero(active.any(axis=1)).max()) + 1   # active shifts: (about) a prefix
             it += 1
-            r = Rb[:, used - 1]
+            r = blk.Rb[:, blk.used - 1]
             for j in np.flatnonzero(cols):               # (per column: faster than SciPy's multi-vector product)
                 Ap[j] = A @ p[j]
             if seed != 0.0:
@@ -154,25 +116,14 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
             pAp = np.einsum("ij,ij->i", p, Ap)
             ok = cols & (pAp > 0)
             alpha = np.where(ok, rho / np.where(ok, pAp, 1.0), 0.0)
-            r_new = Rb[:, used] if used < cap else r_spare
+            r_new = blk.next_slot()
             np.multiply(Ap, alpha[:, None], out=r_new)
             np.subtract(r, r_new, out=r_new)
             rho_new = np.einsum("ij,ij->i", r_new, r_new)
             beta = np.where(ok & (rho > 0), rho_new / np.where(rho > 0, rho, 1.0), 0.0)
-            # shifted recurrences (k, c): ζ_{i+1}, α_s, β_s
-            den = alpha_prev * zeta_prev * (1.0 + alpha * delta) + alpha * beta_prev * (zeta_prev - zeta)
-            zeta_new = zeta * zeta_prev * alpha_prev / den
-            ratio = zeta_new / zeta
-            upd = active & ok & np.isfinite(ratio)
-            alpha_s = np.where(upd, alpha * ratio, 0.0)
-            beta_s = np.where(upd, beta * ratio * ratio, 0.0)
-            # x_s += α_s p_s ;  p_s ← β_s p_s (+ ζ_s r_new below): coefficients only
-            aT = alpha_s[:ka].T                          # (c, ka)
-            Xf[:, :ka, :used] += aT[:, :, None] * Cf[:, :ka, :used]
-            xa[:, :ka] += aT * a[:, :ka]
-            bT = beta_s[:ka].T
-            Cf[:, :ka, :used] *= bT[:, :, None]
-            a[:, :ka] *= bT
+            zeta_new, upd, alpha_s, beta_s = shifted_coefficients(zeta, zeta_prev, alpha, alpha_prev, beta,
+                                                                  beta_prev, delta, active & ok)
+            blk.advance(alpha_s, beta_s, ka)
             # convergence of each (shift, column) after this iteration
             zeta_prev = np.where(upd, zeta, zeta_prev)
             zeta = np.where(upd, zeta_new, zeta)
@@ -180,29 +131,118 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
             iterations[newly] = it
             active &= ~newly
             active &= ok | ~cols                         # a column whose seed broke down is finished
-            if progress is not None:
-                done = ~active.any(axis=1)
-                if (done != done_prev).any():
-                    progress(done[inv])
-                    done_prev = done
+            done_prev = report_progress(progress, active, inv, done_prev)
             if not active.any():
                 break
             ka = int(np.flatnonzero(active.any(axis=1)).max()) + 1
-            if used == cap:                              # block full: fold it into X and P, start a new one
-                flush(k_blk, ka)
+            if blk.used == blk.cap:                      # block full: fold it into X and P, start a new one
+                blk.flush(k_blk, ka)
                 k_blk = ka
-                Cf[:] = 0.0
-                Xf[:] = 0.0
-                a[:] = 1.0
-                xa[:] = 0.0
-                used = 0
-                Rb[:, 0] = r_spare
-            Cf[:, :ka, used] = zeta[:ka].T
-            used += 1
+                blk.restart()
+            blk.append(zeta, ka)
             p *= beta[:, None]
-            p += Rb[:, used - 1]
+            p += blk.Rb[:, blk.used - 1]
             rho = np.where(ok, rho_new, rho)
             alpha_prev = np.where(ok, alpha, alpha_prev)
             beta_prev = np.where(ok, beta, beta_prev)
-    flush(k_blk, 0)
-    return MultiShiftResult(X[:, inv], iterations[inv], ~active[inv], it, flushes)
+    blk.flush(k_blk, 0)
+    return MultiShiftResult(blk.X[:, inv], iterations[inv], ~active[inv], it, blk.flushes)
+
+
+def report_progress(progress, active: np.ndarray, inv: np.ndarray, before: np.ndarray | None) -> np.ndarray:
+    """Call ``progress`` when the set of finished shifts changed (first call: when any is); returns that set."""
+    done = ~active.any(axis=1)
+    if progress is not None and (done.any() if before is None else (done != before).any()):
+        progress(done[inv])
+    return done
+
+
+def shifted_coefficients(zeta, zeta_prev, alpha, alpha_prev, beta, beta_prev, delta, live):
+    """The shifted recurrences (k, c) of CG-M: ζ_{i+1}, which (shift, column) update, α_s and β_s.
+
+    ``live``: (shift, column) still iterating whose seed column did not break down.
+    """
+    den = alpha_prev * zeta_prev * (1.0 + alpha * delta) + alpha * beta_prev * (zeta_prev - zeta)
+    zeta_new = zeta * zeta_prev * alpha_prev / den
+    ratio = zeta_new / zeta
+    upd = live & np.isfinite(ratio)
+    alpha_s = np.where(upd, alpha * ratio, 0.0)
+    beta_s = np.where(upd, beta * ratio * ratio, 0.0)
+    return zeta_new, upd, alpha_s, beta_s
+
+
+class ShiftedBlock:
+    """The shifted iterates of :func:`multishift_cg` as coefficients over a block of stored seed residuals.
+
+    ``p_s = a_s P_s + Σ_t Cf[t] Rb[t]`` and ``x_s = X_s + xa_s P_s + Σ_t Xf[t] Rb[t]``
+    (per column); :meth:`flush` folds the block into ``X`` and ``P`` with one
+    GEMM per column.  ``r`` of the seed is always ``Rb[:, used - 1]``.
+    """
+
+    def __init__(self, B: np.ndarray, k: int, cap: int):
+        c, n = B.shape
+        self.c, self.n, self.cap = c, n, cap
+        self.X = np.empty((c, k, n))                    # written by the first flush
+        self.Rb = np.empty((c, cap, n))                 # the block's seed residuals
+        self.Rb[:, 0] = B
+        self.used = 1
+        self.r_spare = np.empty_like(B)                 # the new residual when the block is full
+        self.P = None                                   # block-start directions P_s (c, kp, n), after a first block
+        self.Cf = np.zeros((c, k, cap))
+        self.Xf = np.zeros((c, k, cap))
+        self.a = np.zeros((c, k))
+        self.xa = np.zeros((c, k))
+        self.Cf[:, :, 0] = 1.0                          # p_s(0) = r(0) for every shift
+        self.flushes = 0
+
+    def next_slot(self) -> np.ndarray:
+        """Where the next seed residual goes."""
+        return self.Rb[:, self.used] if self.used < self.cap else self.r_spare
+
+    def advance(self, alpha_s: np.ndarray, beta_s: np.ndarray, ka: int) -> None:
+        """x_s += α_s p_s ;  p_s ← β_s p_s (+ ζ_s r_new in :meth:`append`): coefficients only."""
+        used = self.used
+        aT = alpha_s[:ka].T                              # (c, ka)
+        self.Xf[:, :ka, :used] += aT[:, :, None] * self.Cf[:, :ka, :used]
+        self.xa[:, :ka] += aT * self.a[:, :ka]
+        bT = beta_s[:ka].T
+        self.Cf[:, :ka, :used] *= bT[:, :, None]
+        self.a[:, :ka] *= bT
+
+    def append(self, zeta: np.ndarray, ka: int) -> None:
+        """The new seed residual joins the block with coefficient ζ_s in every p_s."""
+        self.Cf[:, :ka, self.used] = zeta[:ka].T
+        self.used += 1
+
+    def restart(self) -> None:
+        """A new block starting with the spare residual (after :meth:`flush`)."""
+        self.Cf[:] = 0.0
+        self.Xf[:] = 0.0
+        self.a[:] = 1.0
+        self.xa[:] = 0.0
+        self.used = 0
+        self.Rb[:, 0] = self.r_spare
+
+    def flush(self, kx: int, ka: int) -> None:
+        """Fold the block into X (shifts [:kx], all that were active in it) and P ([:ka], still active)."""
+        self.flushes += 1
+        Rv = self.Rb[:, :self.used]
+        Xf, Cf, X, P = self.Xf, self.Cf, self.X, self.P
+        for j in range(self.c):
+            if self.flushes == 1:                        # X is still empty: write, don't accumulate
+                np.matmul(Xf[j, :kx, :self.used], Rv[j], out=X[j, :kx])
+                X[j, kx:] = 0.0
+                continue
+            if P is not None:
+                for s_ in np.flatnonzero(self.xa[j, :kx]):
+                    X[j, s_] += self.xa[j, s_] * P[j, s_]
+            X[j, :kx] += Xf[j, :kx, :self.used] @ Rv[j]
+        if ka:
+            if P is None:
+                self.P = P = np.empty((self.c, ka, self.n))
+                for j in range(self.c):
+                    np.matmul(Cf[j, :ka, :self.used], Rv[j], out=P[j])
+            else:
+                for j in range(self.c):
+                    P[j, :ka] *= self.a[j, :ka, None]
+                    P[j, :ka] += Cf[j, :ka, :self.used] @ Rv[j]

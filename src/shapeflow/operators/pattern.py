@@ -20,7 +20,7 @@ from .. import accel
 from ..errors import MeshError, ParameterError
 
 __all__ = ["SCHEMES", "FAN_TRIANGLES_MAX", "check_scheme", "fan_interior_triangles", "corner_weights",
-           "OperatorPattern", "csr_pattern", "operator_pattern"]
+           "OperatorPattern", "ngon_fans", "csr_pattern", "operator_pattern"]
 
 
 SCHEMES = ("tqlbo", "blender")
@@ -185,44 +185,8 @@ class OperatorPattern:
         primary = ch[~((cs[ch] == 4) & (local[ch] >= 2))]
         va, vb = fi[prv[primary]], fi[nxt[primary]]
         # --- extra fan triangles of tqlbo n-gons
-        xt, xw, xf, xslot_keys, xslot_edge = [], [], [], [], []
-        if scheme == "tqlbo":
-            big = sizes >= 5
-            fan = int((sizes[big] * (sizes[big] - 4)).sum())
-            if fan > FAN_TRIANGLES_MAX:
-                f = int(np.argmax(sizes))
-                raise MeshError(f"face {f} has {int(sizes[f])} corners: the tqlbo operator of an n-gon is the mean "
-                                f"of its fan triangulations and couples every pair of its corners; this mesh's "
-                                f"n-gons need {fan:,} fan triangles (~{fan * 400 / 1e9:.1f} GB), at most "
-                                f"{FAN_TRIANGLES_MAX:,}. Split the large faces, or use scheme='blender' "
-                                "(corner triangles only, linear in the corners)")
-            for s_ in np.unique(sizes[big]):
-                s_ = int(s_)
-                lt, lw = fan_interior_triangles(s_)
-                if lt.size == 0:
-                    continue
-                faces = np.flatnonzero(sizes == s_)
-                corners = offs[faces][:, None, None] + lt[None]          # (m_s, t, 3)
-                xt.append(fi[corners].reshape(-1, 3))
-                xw.append(np.tile(lw, faces.size))
-                xf.append(np.repeat(faces, lt.shape[0]))
-                # pair opposite local corner k: an edge (adjacent corners) or a chord
-                sl_edge = np.full((faces.size, lt.shape[0], 3), -1, dtype=np.int64)
-                sl_key = np.full((faces.size, lt.shape[0], 3), -1, dtype=np.int64)
-                for k in range(3):
-                    a_ = lt[:, (k + 1) % 3]
-                    b_ = lt[:, (k + 2) % 3]
-                    ca = corners[:, :, (k + 1) % 3]
-                    cb = corners[:, :, (k + 2) % 3]
-                    fwd = (b_ - a_) % s_ == 1
-                    bwd = (a_ - b_) % s_ == 1
-                    sl_edge[:, fwd, k] = corner_edge[ca[:, fwd]]
-                    sl_edge[:, bwd, k] = corner_edge[cb[:, bwd]]
-                    chord = ~(fwd | bwd)
-                    x, y = fi[ca[:, chord]], fi[cb[:, chord]]
-                    sl_key[:, chord, k] = np.minimum(x, y) * n + np.maximum(x, y)
-                xslot_edge.append(sl_edge.reshape(-1, 3))
-                xslot_keys.append(sl_key.reshape(-1, 3))
+        xt, xw, xf, xslot_keys, xslot_edge = (ngon_fans(sizes, offs, fi, corner_edge, n) if scheme == "tqlbo"
+                                              else ([], [], [], [], []))
         # Chords are not deduplicated: a chord shared by two faces (or equal to an
         # edge) is simply two entries of the sparse pattern, which add up in any
         # product; direct solvers and cotan_weights() canonicalise a copy.
@@ -319,6 +283,54 @@ class OperatorPattern:
         return (tris, np.concatenate([self.corner_w, self.extra_w]),
                 np.concatenate([self.corner_aw, self.extra_w]),
                 np.r_[np.ones(ct.shape[0], bool), np.zeros(self.extra_tris.shape[0], bool)])
+
+
+def ngon_fans(sizes, offs, fi, corner_edge, n: int):
+    """The interior fan triangles of every n-gon (s >= 5) of the "tqlbo" scheme, grouped by size.
+
+    Returns lists (one entry per size) of triangles (t, 3), weights, faces,
+    and for each triangle corner the pair opposite it: ``slot_keys`` (a chord's
+    key ``min·n + max``, -1 for an edge) and ``slot_edge`` (an edge's id, -1
+    for a chord).
+    """
+    xt, xw, xf, xslot_keys, xslot_edge = [], [], [], [], []
+    big = sizes >= 5
+    fan = int((sizes[big] * (sizes[big] - 4)).sum())
+    if fan > FAN_TRIANGLES_MAX:
+        f = int(np.argmax(sizes))
+        raise MeshError(f"face {f} has {int(sizes[f])} corners: the tqlbo operator of an n-gon is the mean "
+                        f"of its fan triangulations and couples every pair of its corners; this mesh's "
+                        f"n-gons need {fan:,} fan triangles (~{fan * 400 / 1e9:.1f} GB), at most "
+                        f"{FAN_TRIANGLES_MAX:,}. Split the large faces, or use scheme='blender' "
+                        "(corner triangles only, linear in the corners)")
+    for s_ in np.unique(sizes[big]):
+        s_ = int(s_)
+        lt, lw = fan_interior_triangles(s_)
+        if lt.size == 0:
+            continue
+        faces = np.flatnonzero(sizes == s_)
+        corners = offs[faces][:, None, None] + lt[None]          # (m_s, t, 3)
+        xt.append(fi[corners].reshape(-1, 3))
+        xw.append(np.tile(lw, faces.size))
+        xf.append(np.repeat(faces, lt.shape[0]))
+        # pair opposite local corner k: an edge (adjacent corners) or a chord
+        sl_edge = np.full((faces.size, lt.shape[0], 3), -1, dtype=np.int64)
+        sl_key = np.full((faces.size, lt.shape[0], 3), -1, dtype=np.int64)
+        for k in range(3):
+            a_ = lt[:, (k + 1) % 3]
+            b_ = lt[:, (k + 2) % 3]
+            ca = corners[:, :, (k + 1) % 3]
+            cb = corners[:, :, (k + 2) % 3]
+            fwd = (b_ - a_) % s_ == 1
+            bwd = (a_ - b_) % s_ == 1
+            sl_edge[:, fwd, k] = corner_edge[ca[:, fwd]]
+            sl_edge[:, bwd, k] = corner_edge[cb[:, bwd]]
+            chord = ~(fwd | bwd)
+            x, y = fi[ca[:, chord]], fi[cb[:, chord]]
+            sl_key[:, chord, k] = np.minimum(x, y) * n + np.maximum(x, y)
+        xslot_edge.append(sl_edge.reshape(-1, 3))
+        xslot_keys.append(sl_key.reshape(-1, 3))
+    return xt, xw, xf, xslot_keys, xslot_edge
 
 
 def csr_pattern(rows: np.ndarray, cols: np.ndarray, n: int):

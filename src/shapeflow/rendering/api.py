@@ -158,38 +158,11 @@ def render_meshes(meshes: Sequence, path=None, *, grid=None, colors=None, labels
     refs = list(reference) if isinstance(reference, (list, tuple)) else [reference] * k
     if len(refs) != k:
         raise ParameterError(f"{len(refs)} reference meshes for {k} meshes")
-    if colors is not None:
-        colors = list(colors)
-        if len(colors) != k:
-            raise ParameterError(f"{len(colors)} colours for {k} meshes")
-        specs = []
-        for c in colors:
-            rgb = to_rgb(c)
-            if rgb is None:
-                raise ParameterError(f"not a colour: {c!r}")
-            specs.append(rgb)
-        fields = [Field("solid", rgb=rgb) for rgb in specs]
-    else:
-        per_mesh = isinstance(color, list) and len(color) == k and not (
-            k in (3, 4) and all(isinstance(x, (int, float)) for x in color))
-        cs = color if per_mesh else [color] * k
-        fields = [color_field(m, c, r, curvature_area) for m, c, r in zip(meshes, cs, refs)]
+    fields = panel_fields(meshes, colors, color, refs, curvature_area)
     scalar = [f for f in fields if f.kind == "scalar"]
     diverging = bool(scalar) and all(f.diverging for f in scalar)
     if scalar:
-        if clim is None and all(f.fixed for f in scalar):
-            clim = (min(f.fixed[0] for f in scalar), max(f.fixed[1] for f in scalar))
-        elif clim is None:
-            clim = robust_range(np.concatenate([f.values for f in scalar]), diverging)
-        else:
-            try:
-                clim = tuple(float(x) for x in clim)
-            except (TypeError, ValueError):
-                raise ParameterError(f"clim must be (low, high), got {clim!r}") from None
-            if len(clim) != 2 or not clim[1] > clim[0]:
-                raise ParameterError(f"clim must be (low, high) with low < high, got {clim!r}")
-        cmap = cmap or ("coolwarm" if diverging else "viridis")
-        colormap(cmap)  # validate early
+        clim, cmap = shared_range(scalar, clim, cmap, diverging)
     show_bar = colorbar and bool(scalar)
     bar_label = scalar[0].label if scalar and len({f.label for f in scalar}) == 1 else "value"
 
@@ -202,17 +175,7 @@ def render_meshes(meshes: Sequence, path=None, *, grid=None, colors=None, labels
     if view_h < 16:
         raise ParameterError(f"size {size[0]}x{size[1]} leaves no room for the model")
 
-    aspect = w / view_h
-    if framing == "shared":
-        allpts = np.concatenate([m.vertices for m in meshes])
-        cams = [camera(allpts, view, up, aspect)] * k
-    elif framing == "rows":
-        cams = []
-        for r0 in range(0, k, cols):
-            row = meshes[r0:r0 + cols]
-            cams += [camera(np.concatenate([m.vertices for m in row]), view, up, aspect)] * len(row)
-    else:
-        cams = [camera(m.vertices, view, up, aspect) for m in meshes]
+    cams = cameras(meshes, framing, view, up, w / view_h, cols)
     nch = 4 if transparent else 3
     bgpix = np.array([255, 255, 255, 0][:nch], np.uint8)
     canvas = np.empty((rows * h + bar_h, cols * w, nch), np.uint8)
@@ -242,6 +205,59 @@ def render_meshes(meshes: Sequence, path=None, *, grid=None, colors=None, labels
     if path is not None:
         save_png(path, canvas)
     return canvas
+
+
+def panel_fields(meshes: list, colors, color, refs: list, curvature_area: str) -> list:
+    """What each panel paints: one solid colour per mesh (``colors``), else ``color`` (shared or per mesh)."""
+    k = len(meshes)
+    if colors is not None:
+        colors = list(colors)
+        if len(colors) != k:
+            raise ParameterError(f"{len(colors)} colours for {k} meshes")
+        specs = []
+        for c in colors:
+            rgb = to_rgb(c)
+            if rgb is None:
+                raise ParameterError(f"not a colour: {c!r}")
+            specs.append(rgb)
+        return [Field("solid", rgb=rgb) for rgb in specs]
+    per_mesh = isinstance(color, list) and len(color) == k and not (
+        k in (3, 4) and all(isinstance(x, (int, float)) for x in color))
+    cs = color if per_mesh else [color] * k
+    return [color_field(m, c, r, curvature_area) for m, c, r in zip(meshes, cs, refs)]
+
+
+def shared_range(scalar: list, clim, cmap, diverging: bool):
+    """One colour range and colour map for every scalar field (``clim`` checked when given)."""
+    if clim is None and all(f.fixed for f in scalar):
+        clim = (min(f.fixed[0] for f in scalar), max(f.fixed[1] for f in scalar))
+    elif clim is None:
+        clim = robust_range(np.concatenate([f.values for f in scalar]), diverging)
+    else:
+        try:
+            clim = tuple(float(x) for x in clim)
+        except (TypeError, ValueError):
+            raise ParameterError(f"clim must be (low, high), got {clim!r}") from None
+        if len(clim) != 2 or not clim[1] > clim[0]:
+            raise ParameterError(f"clim must be (low, high) with low < high, got {clim!r}")
+    cmap = cmap or ("coolwarm" if diverging else "viridis")
+    colormap(cmap)  # validate early
+    return clim, cmap
+
+
+def cameras(meshes: list, framing: str, view, up: str, aspect: float, cols: int) -> list:
+    """One camera per panel: fitted to all meshes, to each row of the grid, or to each mesh."""
+    k = len(meshes)
+    if framing == "shared":
+        allpts = np.concatenate([m.vertices for m in meshes])
+        return [camera(allpts, view, up, aspect)] * k
+    if framing == "rows":
+        cams = []
+        for r0 in range(0, k, cols):
+            row = meshes[r0:r0 + cols]
+            cams += [camera(np.concatenate([m.vertices for m in row]), view, up, aspect)] * len(row)
+        return cams
+    return [camera(m.vertices, view, up, aspect) for m in meshes]
 
 
 def grid_shape(grid, k: int) -> tuple[int, int]:

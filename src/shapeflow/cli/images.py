@@ -11,14 +11,14 @@ Each command calls one function here at the end of its ``run()``:
 
 from __future__ import annotations
 
-from ._common import eprint
+from .common import eprint
 
 #: default picture settings for the before/after images
 VIEW = "iso"
 PANEL = (480, 440)
 
 
-def _check(path: str) -> str:
+def check_picture_path(path: str) -> str:
     from .render import check_png
 
     return check_png(path, "--image")
@@ -32,7 +32,7 @@ def before_after(path: str, before, after, *, label_before: str = "input", label
     ``edges`` and ``shading`` may be one value or a pair (before, after)."""
     from ..rendering import render_meshes
 
-    _check(path)
+    check_picture_path(path)
     render_meshes([before, after], path, labels=[label_before, label_after], color=color, edges=edges,
                   shading=shading, view=view, up=up, size=PANEL)
     if not quiet:
@@ -76,7 +76,7 @@ def family_image(path: str, meshes, lams, *, view=VIEW, up: str = "y", max_panel
 
     from ..rendering import family_colors, render_meshes
 
-    _check(path)
+    check_picture_path(path)
     meshes, lams = list(meshes), list(lams)
     idx = np.unique(np.round(np.linspace(0, len(meshes) - 1, min(len(meshes), max_panels))).astype(int))
     cols = family_colors(len(meshes))

@@ -1,0 +1,163 @@
+"""The architecture of the package, checked from its source (docs/architecture.md).
+
+* layers: a module imports only from its own layer or lower ones (module-level and
+  function-level imports alike), with the exceptions listed in ``UPWARD`` and their reasons;
+* size: no module over ``MODULE_LINES`` lines, no function body over ``FUNCTION_LINES``
+  lines unless its ``def`` line carries a ``# long: <reason>`` comment;
+* privacy: no leading-underscore name of a shapeflow module is imported or used as an
+  attribute of a module outside it (source and tests).
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+SRC = ROOT / "src" / "shapeflow"
+
+#: rank of each top-level part of the package; a module may import ranks <= its own
+LAYERS = {
+    "errors": 0, "params": 0, "budget": 0, "accel": 0,
+    "mesh": 1,
+    "geometry": 2,
+    "operators": 3,
+    "linalg": 4,
+    "flow": 5, "sculpt": 5, "subdivision": 5,
+    "io": 6, "rendering": 6, "examples": 6,
+    "cli": 7, "blender": 7, "__init__": 7, "__main__": 7,
+}
+#: allowed imports against the layering: (importer, imported) -> reason
+UPWARD = {
+    ("mesh.core", "geometry.measures"): "Mesh.diagnostics() counts zero-area faces with the polygon vector area",
+}
+MODULE_LINES = 600
+FUNCTION_LINES = 80
+
+
+def modules():
+    for p in sorted(SRC.rglob("*.py")):
+        rel = p.relative_to(SRC).with_suffix("")
+        parts = rel.parts
+        if parts[0] == "blender" and len(parts) > 1 and parts[1] == "addon":
+            continue   # runs inside Blender, imports shapeflow as a user would
+        name = ".".join(parts[:-1] if parts[-1] == "__init__" else parts) or "__init__"
+        yield name, p
+
+
+def imported_modules(name: str, path: Path):
+    """Every shapeflow module ``name`` imports (absolute names without the ``shapeflow.`` prefix)."""
+    tree = ast.parse(path.read_text())
+    pkg = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = pkg[:len(pkg) - node.level + 1] if node.level > 1 else pkg
+                mod = ".".join([*base, *(node.module.split(".") if node.module else [])])
+            elif node.module and node.module.startswith("shapeflow"):
+                mod = node.module[len("shapeflow."):] if node.module != "shapeflow" else ""
+            else:
+                continue
+            for alias in node.names:
+                yield (f"{mod}.{alias.name}" if mod else alias.name), node.lineno, alias.name
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("shapeflow."):
+                    yield alias.name[len("shapeflow."):], node.lineno, alias.name
+
+
+def layer(mod: str) -> int | None:
+    return LAYERS.get(mod.split(".")[0])
+
+
+def test_every_part_has_a_layer():
+    tops = {name.split(".")[0] for name, _ in modules()}
+    assert tops <= set(LAYERS), tops - set(LAYERS)
+
+
+def test_lower_layers_never_import_higher_ones():
+    bad = []
+    for name, path in modules():
+        mine = layer(name)
+        for target, line, _ in imported_modules(name, path):
+            theirs = layer(target)
+            if theirs is None or theirs <= mine:
+                continue
+            if any(name == a and target.startswith(b) for a, b in UPWARD):
+                continue
+            bad.append(f"{path.relative_to(ROOT)}:{line} ({name}, layer {mine}) imports {target} (layer {theirs})")
+    assert not bad, "\n".join(bad)
+
+
+def test_the_listed_exceptions_exist():
+    """Every allowed upward import is still made (else the exception is stale)."""
+    made = {(name, target) for name, path in modules() for target, _, _ in imported_modules(name, path)}
+    for a, b in UPWARD:
+        assert any(n == a and t.startswith(b) for n, t in made), (a, b)
+
+
+@pytest.mark.parametrize("name, path", list(modules()), ids=[n for n, _ in modules()])
+def test_module_size(name, path):
+    lines = len(path.read_text().splitlines())
+    assert lines <= MODULE_LINES, f"{path.relative_to(ROOT)} has {lines} lines"
+
+
+def _body_lines(fn) -> int:
+    body = fn.body
+    if body and isinstance(body[0], ast.Expr) and isinstance(getattr(body[0], "value", None), ast.Constant) \
+            and isinstance(body[0].value.value, str):
+        body = body[1:]
+    return body[-1].end_lineno - body[0].lineno + 1 if body else 0
+
+
+def test_function_size():
+    bad = []
+    for name, path in modules():
+        text = path.read_text()
+        lines = text.splitlines()
+        for node in ast.walk(ast.parse(text)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = _body_lines(node)
+                head = lines[node.lineno - 1:node.body[0].lineno - 1]
+                if n > FUNCTION_LINES and not any("# long:" in h for h in head):
+                    bad.append(f"{path.relative_to(ROOT)}:{node.lineno} {node.name}: {n} lines")
+    assert not bad, "\n".join(bad)
+
+
+def _private_uses(path: Path, aliases_of_modules: bool = True):
+    """Leading-underscore names of shapeflow modules imported or read as module attributes."""
+    tree = ast.parse(path.read_text())
+    module_aliases = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and (node.level or (node.module or "").startswith("shapeflow")):
+            if any(part.startswith("_") and not part.startswith("__") for part in (node.module or "").split(".")):
+                yield node.lineno, node.module
+            for alias in node.names:
+                if alias.name.startswith("_") and not alias.name.startswith("__"):
+                    yield node.lineno, alias.name
+                else:
+                    module_aliases.add(alias.asname or alias.name)
+        elif isinstance(node, ast.Import):
+            for alias in node.names:
+                if alias.name.startswith("shapeflow"):
+                    module_aliases.add(alias.asname or alias.name.split(".")[0])
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__"):
+            base = node.value
+            while isinstance(base, ast.Attribute):
+                base = base.value
+            if isinstance(base, ast.Name) and base.id in module_aliases | {"sf", "shapeflow"} \
+                    and base.id not in ("self", "cls"):
+                yield node.lineno, ast.unparse(node)
+
+
+def test_no_private_name_is_used_outside_its_module():
+    bad = []
+    files = [p for _, p in modules()] + sorted((ROOT / "tests").glob("**/*.py")) \
+        + sorted((ROOT / "benchmarks").glob("*.py")) + sorted((ROOT / "docs").glob("*.py"))
+    for p in files:
+        for line, what in _private_uses(p):
+            bad.append(f"{p.relative_to(ROOT)}:{line} {what}")
+    assert not bad, "\n".join(bad)
