@@ -193,6 +193,7 @@ def main(argv=None) -> int:
     ap.add_argument("--solvers", action="store_true", help="compare auto (split) / banded / SuperLU / cholespy / dense")
     ap.add_argument("--profile", action="store_true", help="median time of each phase of a dab")
     ap.add_argument("--keep", action="store_true", help="keep every dab (no undo between timed dabs)")
+    ap.add_argument("--json", metavar="PATH", help="also write the table (for docs/gallery.py fig10)")
     args = ap.parse_args(argv)
     dabs = 12 if args.quick else args.dabs
     print(f"shapeflow {sf.__version__}, numpy {np.__version__}, {os.cpu_count()} cores; "
@@ -230,7 +231,18 @@ def main(argv=None) -> int:
         print(f"  stroke of {len(centres)} dabs, r for 2600 at the start ({np.median(moved):5.0f} solved): "
               f"{fmt_ms(t)}, CPU {1e3 * np.median(cpu):5.2f} ms")
         print(f"  spatial-index rebuilds: {brush.tree_rebuilds}")
-    print(f"\nload average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    load_after = os.getloadavg()
+    print(f"\nload average after: {' '.join(f'{x:.2f}' for x in load_after)}")
+    if args.json:
+        import datetime
+        import json
+
+        rows = [dict(mesh=r[0], vertices=r[1], inside=r[2], seconds=r[3], vertices_per_second=r[4], cpu_seconds=r[5])
+                for r in table]
+        meta = dict(date=datetime.date.today().isoformat(), shapeflow=sf.__version__, numpy=np.__version__,
+                    cores=os.cpu_count(), load_after=list(load_after), lam=args.lam, timed_dabs=dabs - 3,
+                    compiled=sf.accel.available())
+        Path(args.json).write_text(json.dumps(dict(meta=meta, rows=rows), indent=1) + "\n")
     print("\nmedian wall ms per dab [CPU ms] (rows: mesh; columns: vertices inside the sphere)")
     print(f"{'':28s}" + "".join(f"{t:>16d}" for t in TARGETS))
     for name in dict.fromkeys(r[0] for r in table):

@@ -247,6 +247,44 @@ def figure9_brushes(meshes: Path, out: Path) -> str:
             f"{moved[0].max():.4f}, inflate {moved[1].max():.4f} (diagonal {spot.diagonal:.3f})")
 
 
+def figure10_brush_speed(meshes: Path, out: Path) -> str:
+    """FIGURE 10: sculpted vertices per second by dab size and model size, plotted from the output of
+    ``python benchmarks/bench_brush.py --json benchmarks/results/brush.json`` (medians of 100 dabs per
+    case), with the paper's 2012 figures (800 vertices in 0.1 s, 2,600 in 0.5 s) for scale."""
+    import json
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    res = HERE.parent / "benchmarks" / "results" / "brush.json"
+    if not res.is_file():
+        raise Unavailable(f"{res} is missing: run benchmarks/bench_brush.py --json {res}")
+    data = json.loads(res.read_text())
+    rows, meta = data["rows"], data["meta"]
+    fig = Figure(figsize=(6.4, 3.8), dpi=110)
+    ax = fig.add_subplot()
+    for name in dict.fromkeys(r["mesh"] for r in rows):
+        rs = [r for r in rows if r["mesh"] == name]
+        ax.plot([r["inside"] for r in rs], [r["vertices_per_second"] for r in rs], "o-",
+                label=name)
+    ax.plot([800, 2600], [800 / 0.1, 2600 / 0.5], "k--", label="paper (2012, quad-core)")
+    ax.set_yscale("log")
+    ax.set_xlabel("vertices inside the brush sphere")
+    ax.set_ylabel("sculpted vertices per second")
+    ax.set_title(f"enhancement brush, λ = {meta['lam']:g}, median of {meta['timed_dabs']} dabs "
+                 f"({meta['date']}, {meta['cores']} cores)", fontsize=9)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    path = out / "fig10_brush_speed.png"
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    img = np.asarray(canvas.buffer_rgba())[:, :, :3]
+    kb = save_small(path, img) / 1e3
+    slow = min(r["vertices_per_second"] for r in rows)
+    return f"{path.name} ({kb:.0f} KB): {len(rows)} cases; slowest {slow / 1e3:.0f}K vertices/s"
+
+
 def figure11_normalisation(meshes: Path, out: Path) -> str:
     """Spot scaled so that its mean edge length is 1 (×1) and 4 times larger (×4); λ=−50 with the
     normalised operator (eq. 10, the default) and the area-normalised one (eq. 9,
@@ -275,6 +313,52 @@ def figure11_normalisation(meshes: Path, out: Path) -> str:
     return f"{path.name} ({kb:.0f} KB): " + "; ".join(notes) + " (× diagonal)"
 
 
+def bend(V: np.ndarray, angle_deg: float, pivot=(0.0, 0.3, 0.0), band=(-0.1, 0.1), legs=(-0.3, -0.1)):
+    """A simple skeletal bend of Spot's head: vertices in front of the neck (z < band[0]) and above the
+    front legs (y > legs[1]) turn rigidly about the x axis through ``pivot``; across the neck and
+    shoulder bands the two bones blend linearly (skinning).  Returns the positions and the rotation."""
+    a = np.radians(angle_deg)
+    R = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(a), -np.sin(a)], [0.0, np.sin(a), np.cos(a)]])
+    p = np.asarray(pivot)
+    t = (np.clip((band[1] - V[:, 2]) / (band[1] - band[0]), 0.0, 1.0)       # 1 on the head, 0 on the body
+         * np.clip((V[:, 1] - legs[0]) / (legs[1] - legs[0]), 0.0, 1.0))[:, None]
+    return (1.0 - t) * V + t * ((V - p) @ R.T + p), R
+
+
+def figure12_poses(meshes: Path, out: Path) -> str:
+    """FIGURE 12: the same weighted enhancement (λ=−60, weights 1 on the head, ramping to 0 towards the
+    neck and throat) on three poses of Spot made by bending the neck (0°, +30°, −30°, linear-blend skinning).
+    The operator is intrinsic, and every vertex sharing a face with a weighted one moves rigidly, so
+    the enhanced head is the same shape in every pose: its displacement, turned back by the pose's
+    rotation, is compared with the rest pose's."""
+    spot = load(meshes, "spot_quad")
+    V = spot.vertices
+    # the head (z < -0.35, y > 0.25) = 1, 0 from z = -0.25 and below y = 0.15 on (clear of the bent bands)
+    w = height_weights(V[:, 2], -0.25, -0.35) * height_weights(V[:, 1], 0.15, 0.25)
+    posed, enhanced, rots = [], [], []
+    for angle in (0.0, 30.0, -30.0):
+        P, R = bend(V, angle)
+        m = spot.with_vertices(P)
+        posed.append(m)
+        enhanced.append(sf.flow(m, -60.0, weights=w))
+        rots.append(R)
+    d0 = enhanced[0].vertices - posed[0].vertices
+    head = w > 0
+    errs = []
+    for m, e, R in zip(posed[1:], enhanced[1:], rots[1:]):
+        d = (e.vertices - m.vertices) @ R             # turned back: R^T d, row-wise
+        errs.append(float(np.abs(d[head] - d0[head]).max() / np.abs(d0[head]).max()))
+    img = render_meshes(
+        posed + enhanced, None, grid=(2, 3), framing="each",
+        labels=["rest pose", "neck bent +30°", "neck bent -30°",
+                "enhanced (head weighted)", "enhanced", "enhanced"],
+        color=["none"] * 3 + ["displacement"] * 3, reference=posed + posed, view=(-90, 10), size=(300, 260))
+    path = out / "fig12_poses.png"
+    kb = save_small(path, img) / 1e3
+    return (f"{path.name} ({kb:.0f} KB): {int(head.sum())} weighted vertices; head displacement in the bent "
+            f"poses, turned back, differs from the rest pose's by at most {max(errs):.1e} of its size")
+
+
 FIGURES = {
     "fig1": figure1_family,
     "fig5": figure5_cage,
@@ -282,7 +366,9 @@ FIGURES = {
     "fig7": figure7_tri_quad_mixed,
     "fig8": figure8_camel,
     "fig9": figure9_brushes,
+    "fig10": figure10_brush_speed,
     "fig11": figure11_normalisation,
+    "fig12": figure12_poses,
 }
 
 

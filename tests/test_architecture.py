@@ -20,7 +20,7 @@ SRC = ROOT / "src" / "shapeflow"
 
 #: rank of each top-level part of the package; a module may import ranks <= its own
 LAYERS = {
-    "errors": 0, "params": 0, "budget": 0, "accel": 0,
+    "errors": 0, "params": 0, "budget": 0, "accel": 0, "types": 0,
     "mesh": 1,
     "geometry": 2,
     "operators": 3,
@@ -161,3 +161,38 @@ def test_no_private_name_is_used_outside_its_module():
         for line, what in _private_uses(p):
             bad.append(f"{p.relative_to(ROOT)}:{line} {what}")
     assert not bad, "\n".join(bad)
+
+
+def _public_callables():
+    import inspect
+
+    import shapeflow as sf
+
+    for name in sf.__all__:
+        obj = getattr(sf, name)
+        if inspect.isfunction(obj):
+            yield name, obj
+        elif inspect.isclass(obj):
+            for m, f in vars(obj).items():
+                if (not m.startswith("_") or m == "__init__") and inspect.isfunction(f):
+                    yield f"{name}.{m}", f
+                elif isinstance(f, property) and f.fget is not None and not m.startswith("_"):
+                    yield f"{name}.{m}", f.fget
+
+
+def test_the_public_api_is_typed():
+    """Every parameter and return value of the public API has a type (the package ships py.typed)."""
+    import inspect
+
+    assert (SRC / "py.typed").is_file()
+    bad = []
+    for name, f in _public_callables():
+        sig = inspect.signature(f)
+        for p, v in sig.parameters.items():
+            if p in ("self", "cls") or v.kind in (v.VAR_KEYWORD, v.VAR_POSITIONAL):
+                continue
+            if v.annotation is inspect.Parameter.empty:
+                bad.append(f"{name}({p})")
+        if sig.return_annotation is inspect.Signature.empty and not name.endswith("__init__"):
+            bad.append(f"{name} -> ?")
+    assert not bad, bad

@@ -4,8 +4,12 @@ from __future__ import annotations
 
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .errors import MeshError
+
+if TYPE_CHECKING:
+    from .mesh import Mesh
 
 #: name -> (file, description)
 EXAMPLES = {
@@ -21,7 +25,7 @@ def example_path(name: str) -> Path:
     return Path(str(resources.files("shapeflow") / "data" / EXAMPLES[name][0]))
 
 
-def load_example(name: str):
+def load_example(name: str) -> Mesh:
     """Load a bundled example mesh."""
     from .io import load
 

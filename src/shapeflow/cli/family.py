@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ParameterError
 from .. import params
+from ..errors import ParameterError
 from ..geometry import refresh_normals
 from ..io import output_target
 from .common import eprint, load_mesh_arg, progress_callback, save_mesh

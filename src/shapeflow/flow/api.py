@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-from typing import Callable, Sequence
+from typing import Callable
 
 from .. import accel, params
 from ..errors import ParameterError
 from ..linalg.spd import DEFAULT_RTOL
 from ..mesh import Mesh
+from ..types import Axes, Weights
 from .solver import FlowSolver
 
 __all__ = ["flow", "smooth", "enhance"]
@@ -15,8 +16,8 @@ __all__ = ["flow", "smooth", "enhance"]
 
 @accel.heavy
 def flow(mesh: Mesh, lam: float, *, lam_border: float = 0.0, iterations: int = 1,
-         normalized: bool = True, weights=None, invert_weights: bool = False,
-         preserve_volume: bool = False, axes: Sequence[bool] | str = (True, True, True),
+         normalized: bool = True, weights: Weights = None, invert_weights: bool = False,
+         preserve_volume: bool = False, axes: Axes = (True, True, True),
          scheme: str | None = None, update: str = "fixed", compat: str | None = None,
          solver: str = "auto", rtol: float = DEFAULT_RTOL,
          progress: Callable[[int, int], None] | None = None) -> Mesh:

@@ -90,6 +90,7 @@ from ..errors import ParameterError
 from ..geometry.normals import refresh_normals
 from ..linalg.spd import DEFAULT_RTOL
 from ..mesh import Mesh
+from ..types import Axes, Weights
 from .family_paths import plan_shared_solve, separate_solves, shared_solve
 from .options import check_run_options
 from .report import FamilyReport
@@ -113,11 +114,12 @@ def check_lams(lams) -> np.ndarray:
 
 @accel.heavy
 def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterations: int = 1,
-           normalized: bool = True, weights=None, invert_weights: bool = False,
-           preserve_volume: bool = False, axes: Sequence[bool] | str = (True, True, True),
+           normalized: bool = True, weights: Weights = None, invert_weights: bool = False,
+           preserve_volume: bool = False, axes: Axes = (True, True, True),
            scheme: str | None = None, update: str = "fixed", compat: str | None = None,
            solver: str = "auto", rtol: float = DEFAULT_RTOL, strategy: str = "auto",
-           progress: Callable[[int, int], None] | None = None, return_report: bool = False):
+           progress: Callable[[int, int], None] | None = None, return_report: bool = False
+           ) -> np.ndarray | tuple[np.ndarray, FamilyReport]:
     """The flow for every λ of ``lams`` at once: an array ``(k, n, 3)``.
 
     ``result[m]`` equals ``flow(mesh, lams[m], **options).vertices`` (to the

@@ -14,6 +14,7 @@ from ..geometry.normals import NORMAL_ATTRIBUTES, refresh_normals
 from ..linalg.spd import DEFAULT_RTOL
 from ..mesh import Mesh
 from ..operators.pattern import check_scheme
+from ..types import Axes, Weights
 from .fixed import fixed_steps
 from .options import COMPAT_MODES, FLOW_SOLVERS, MEAN_RESTORE_FROM, check_run_options, resolve_weights
 from .report import FlowReport
@@ -42,7 +43,7 @@ class FlowSolver:
 
     @accel.heavy
     def __init__(self, mesh: Mesh, *, lam_border: float = 0.0, normalized: bool = True,
-                 weights=None, invert_weights: bool = False, scheme: str | None = None,
+                 weights: Weights = None, invert_weights: bool = False, scheme: str | None = None,
                  compat: str | None = None, solver: str = "auto", rtol: float = DEFAULT_RTOL):
         if not isinstance(mesh, Mesh):
             raise ParameterError(f"expected a shapeflow.Mesh, got {type(mesh).__name__}")
@@ -130,7 +131,7 @@ class FlowSolver:
 
     @accel.heavy
     def run(self, lam: float, *, iterations: int = 1, preserve_volume: bool = False,
-            axes=(True, True, True), update: str = "fixed",
+            axes: Axes = (True, True, True), update: str = "fixed",
             progress: Callable[[int, int], None] | None = None) -> Mesh:
         """Run ``iterations`` implicit steps with factor ``lam``; returns a new Mesh.
 

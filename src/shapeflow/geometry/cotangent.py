@@ -8,7 +8,8 @@ the three cotangents follow as
     cot(angle at b) = dot / 2A,  cot(at a) = (|p|² − dot) / 2A,  cot(at d) = (|q|² − dot) / 2A,
 
 (0 for a zero-area triangle, never inf or NaN).  The operator's corner
-triangles (:func:`corner_cotangents`), the brush's cached triangles
+triangles (:func:`corner_cotangents`), its n-gon fan triangles and mixed
+areas (:func:`triangle_cotangents`), the brush's cached triangles
 (:func:`tri_geometry`) and the compiled twin
 (:func:`shapeflow.geometry.compiled.corner_triangle`, same operations in the
 same order, tested against this one) all use it.
@@ -80,7 +81,7 @@ def tri_geometry(VT: np.ndarray, tv: np.ndarray):
 
 
 def triangle_cotangents(vertices: np.ndarray, tris: np.ndarray):
-    """Cotangents of the three angles of each triangle, and twice its area.
+    """Cotangents of the three angles of each triangle, and twice its area (:func:`tri_geometry`, row-major).
 
     Parameters
     ----------
@@ -94,27 +95,10 @@ def triangle_cotangents(vertices: np.ndarray, tris: np.ndarray):
         triangle ``t`` (opposite the pair of the other two corners).  Rows of
         triangles with zero area are 0 (never inf or NaN).
     dbl_area : (T,) float64
-        ``|e1 × e2|`` = twice the triangle area.
+        Twice the triangle area.
     sq_len : (T, 3) float64
         Squared length of the edge opposite each corner.
     """
-    p0 = vertices[tris[:, 0]]
-    p1 = vertices[tris[:, 1]]
-    p2 = vertices[tris[:, 2]]
-    e0 = p2 - p1  # opposite corner 0
-    e1 = p0 - p2  # opposite corner 1
-    e2 = p1 - p0  # opposite corner 2
-    cr = np.cross(e2, -e1)
-    dbl = np.sqrt(np.einsum("ij,ij->i", cr, cr))
-    dots = np.empty((tris.shape[0], 3))
-    dots[:, 0] = -np.einsum("ij,ij->i", e1, e2)
-    dots[:, 1] = -np.einsum("ij,ij->i", e2, e0)
-    dots[:, 2] = -np.einsum("ij,ij->i", e0, e1)
-    sq = np.empty((tris.shape[0], 3))
-    sq[:, 0] = np.einsum("ij,ij->i", e0, e0)
-    sq[:, 1] = np.einsum("ij,ij->i", e1, e1)
-    sq[:, 2] = np.einsum("ij,ij->i", e2, e2)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        cot = dots / dbl[:, None]
-    cot[~(dbl > 0)] = 0.0
-    return cot, dbl, sq
+    tris = np.asarray(tris, dtype=np.int64).reshape(-1, 3)
+    cot, dbl, sq = tri_geometry(np.ascontiguousarray(vertices.T), np.ascontiguousarray(tris.T))
+    return cot.T, dbl, sq.T

@@ -9,6 +9,7 @@ from typing import Callable
 from .. import params
 from ..errors import MeshError, ParameterError
 from ..mesh import Mesh
+from ..types import PathLike
 from .atomic import as_path, atomic_write, read_bytes
 
 __all__ = ["Reader", "Writer", "MeshFormat", "FORMATS", "register_format", "as_path", "format_for", "load", "save"]
@@ -69,7 +70,7 @@ def format_for(name: str, format: str | None) -> MeshFormat:
 # public API
 # --------------------------------------------------------------------------
 
-def load(path, *, format: str | None = None) -> Mesh:
+def load(path: PathLike, *, format: str | None = None) -> Mesh:
     """Read a mesh file (format from the extension, or ``format="ply"`` etc.).
 
     Raises
@@ -89,7 +90,8 @@ def load(path, *, format: str | None = None) -> Mesh:
         raise MeshError(f"{name}: malformed {fmt.name} file ({type(exc).__name__}: {exc})") from exc
 
 
-def save(path, mesh: Mesh, *, format: str | None = None, binary: bool | None = None, force: bool = False) -> None:
+def save(path: PathLike, mesh: Mesh, *, format: str | None = None, binary: bool | None = None,
+         force: bool = False) -> None:
     """Write ``mesh`` atomically (format from the extension, or ``format=``).
 
     ``binary`` applies to PLY (default True: binary little-endian; False:

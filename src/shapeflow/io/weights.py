@@ -7,6 +7,7 @@ import os
 import numpy as np
 
 from ..errors import MeshError
+from ..types import ArrayLike, PathLike
 from .atomic import as_path, atomic_write, os_error, read_bytes
 from .text import Text, write_rows
 
@@ -17,7 +18,7 @@ __all__ = ["WEIGHT_EXTENSIONS", "load_weights", "save_weights", "check_npy_heade
 WEIGHT_EXTENSIONS = (".npy", ".txt")
 
 
-def load_weights(path, n_vertices: int) -> np.ndarray:
+def load_weights(path: PathLike, n_vertices: int) -> np.ndarray:
     """Read per-vertex weights from ``.npy`` or ``.txt`` (one number a line).
 
     Checks there are ``n_vertices`` finite values in [0, 1]; returns float64.
@@ -78,7 +79,7 @@ def check_npy_header(f, name: str, n_vertices: int) -> None:
     f.seek(0)
 
 
-def save_weights(path, weights, *, force: bool = False) -> None:
+def save_weights(path: PathLike, weights: ArrayLike, *, force: bool = False) -> None:
     """Write weights atomically to ``.npy`` or ``.txt`` (one number a line, exact); ``force`` as in :func:`save`."""
     name = as_path(path)
     ext = os.path.splitext(name)[1].lower()

@@ -18,7 +18,7 @@ Compiled twins: :mod:`~shapeflow.linalg.compiled` (CG, Clenshaw step) and
 from .chebyshev import chebyshev_coefficients, chebyshev_steps
 from .local import LocalSolver
 from .multishift import MultiShiftResult, multishift_cg
-from .spd import DEFAULT_RTOL, METHODS, SPDSolver, SolveStats, choose_method, cholesky_available
+from .spd import DEFAULT_RTOL, METHODS, SolveStats, SPDSolver, cholesky_available, choose_method
 
 __all__ = ["SPDSolver", "SolveStats", "METHODS", "DEFAULT_RTOL", "choose_method", "cholesky_available",
            "chebyshev_coefficients", "chebyshev_steps", "multishift_cg", "MultiShiftResult", "LocalSolver"]

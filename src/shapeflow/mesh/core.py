@@ -19,6 +19,7 @@ import numpy as np
 
 from .. import accel
 from ..errors import MeshError
+from ..types import ArrayLike, Faces
 from .topology import Diagnostics, Topology, duplicate_faces, nonmanifold_vertices
 from .validate import WEIGHT, as_attribute, as_index_array, as_vertices, normalize_faces, validate_csr
 
@@ -60,7 +61,8 @@ class Mesh:
     __slots__ = ("_vertices", "_topology", "_attributes", "__dict__")
 
     @accel.heavy
-    def __init__(self, vertices, faces, *, weights=None, attributes: Mapping | None = None,
+    def __init__(self, vertices: ArrayLike, faces: Faces, *, weights: ArrayLike | None = None,
+                 attributes: Mapping | None = None,
                  _csr: tuple[np.ndarray, np.ndarray] | None = None,
                  _topology: Topology | None = None):
         v = as_vertices(vertices)
@@ -110,7 +112,8 @@ class Mesh:
             )
         return cls(vertices, None, _csr=(idx, offsets), **kw)
 
-    def with_vertices(self, vertices, *, attributes: Mapping | None = None, keep_attributes: bool = True) -> "Mesh":
+    def with_vertices(self, vertices: ArrayLike, *, attributes: Mapping | None = None,
+                      keep_attributes: bool = True) -> "Mesh":
         """A mesh with the same faces (and shared cached topology), new positions."""
         attrs = dict(self._attributes) if keep_attributes else {}
         if attributes:
@@ -144,7 +147,7 @@ class Mesh:
                 attrs[k] = val
         return Mesh(self._vertices, None, attributes=attrs, _topology=self._topology)
 
-    def with_weights(self, weights) -> "Mesh":
+    def with_weights(self, weights: ArrayLike | None) -> "Mesh":
         """A mesh with the given vertex weights (``None`` removes them)."""
         return self.with_attributes(**{WEIGHT: weights})
 
@@ -239,7 +242,7 @@ class Mesh:
 
     def diagnostics(self, *, rel_area_tol: float = 1e-12) -> Diagnostics:
         """Report legal but suspicious properties (see :class:`Diagnostics`)."""
-        from ..geometry.measures import face_vector_areas   # the one upward import (see docs/architecture.md)
+        from ..geometry.measures import face_vector_areas  # the one upward import (see docs/architecture.md)
 
         t = self._topology
         d = Diagnostics()

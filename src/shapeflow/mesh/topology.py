@@ -9,6 +9,7 @@ from __future__ import annotations
 import threading
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import Any, Callable, Hashable
 
 import numpy as np
 
@@ -31,7 +32,7 @@ class Topology:
         self._derived: dict = {}
         self._derived_lock = threading.Lock()
 
-    def derived(self, key, build):
+    def derived(self, key: Hashable, build: Callable[[], Any]) -> Any:
         """A structure that a higher layer derives from this connectivity alone, built once and cached.
 
         ``build()`` is called the first time ``key`` is asked for (under a

@@ -14,6 +14,7 @@ import numpy as np
 
 from .. import accel
 from ..errors import MeshError
+from ..types import Faces
 
 __all__ = ["WEIGHT", "as_vertices", "as_index_array", "normalize_faces", "validate_csr", "as_attribute"]
 
@@ -57,7 +58,7 @@ def as_index_array(a, what: str) -> np.ndarray:
     return arr.astype(np.int64, copy=False).reshape(-1)
 
 
-def normalize_faces(faces) -> tuple[np.ndarray, np.ndarray]:
+def normalize_faces(faces: Faces) -> tuple[np.ndarray, np.ndarray]:
     """Turn any accepted face layout into ``(face_indices, face_offsets)``.
 
     Accepts a list (or tuple) of index sequences of any lengths, or an (m, k)

@@ -8,13 +8,14 @@ from ..errors import ParameterError
 from ..geometry.cotangent import triangle_cotangents
 from ..geometry.measures import pow2_exponent
 from ..geometry.normals import vertex_normals
+from ..mesh import Mesh
 from .pattern import OperatorPattern
 from .weights import assemble
 
 __all__ = ["vertex_areas", "areas_from", "mean_curvature_normal", "mean_curvature"]
 
 
-def vertex_areas(mesh, kind: str = "ring", scheme: str = "tqlbo") -> np.ndarray:
+def vertex_areas(mesh: Mesh, kind: str = "ring", scheme: str = "tqlbo") -> np.ndarray:
     """Per-vertex area.
 
     ``"ring"``
@@ -58,7 +59,7 @@ def areas_from(mesh, pattern: OperatorPattern, ring: np.ndarray, kind: str) -> n
     raise ParameterError(f"unknown area kind {kind!r}; choose 'ring', 'barycentric' or 'mixed'")
 
 
-def mean_curvature_normal(mesh, *, area: str = "ring", scheme: str = "tqlbo") -> np.ndarray:
+def mean_curvature_normal(mesh: Mesh, *, area: str = "ring", scheme: str = "tqlbo") -> np.ndarray:
     """Mean curvature normal H·n per vertex (eq. 3/4/7), shape (n, 3).
 
     Computed as ``−Δx / 2 = (D − W) V / (4 A)``, with H the mean of the
@@ -85,7 +86,7 @@ def mean_curvature_normal(mesh, *, area: str = "ring", scheme: str = "tqlbo") ->
     return out
 
 
-def mean_curvature(mesh, *, area: str = "ring", scheme: str = "tqlbo") -> np.ndarray:
+def mean_curvature(mesh: Mesh, *, area: str = "ring", scheme: str = "tqlbo") -> np.ndarray:
     """Signed mean curvature per vertex: H = (H·n) · n_vertex.
 
     Positive where the surface bends away from its normal (convex parts of a

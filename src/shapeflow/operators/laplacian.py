@@ -6,13 +6,15 @@ import numpy as np
 import scipy.sparse as sp
 
 from .. import accel
+from ..mesh import Mesh
 from .weights import assemble
 
 __all__ = ["laplacian"]
 
 
 @accel.heavy
-def laplacian(mesh, normalized: bool = True, scheme: str = "tqlbo", *, thresholds: str = "relative") -> sp.csr_matrix:
+def laplacian(mesh: Mesh, normalized: bool = True, scheme: str = "tqlbo", *,
+              thresholds: str = "relative") -> sp.csr_matrix:
     """The TQLBO Laplacian as a sparse matrix (positive semi-definite convention).
 
     ``normalized=True``: eq. 10, ``L = I − D⁻¹W`` (scale-invariant; the paper

@@ -23,6 +23,7 @@ from .. import accel
 from ..errors import ParameterError
 from ..geometry.cotangent import corner_cotangents, triangle_cotangents
 from ..geometry.measures import pow2_exponent
+from ..mesh import Mesh
 from .pattern import check_scheme, operator_pattern
 
 __all__ = ["THRESHOLDS", "REL_EDGE_TOL", "REL_SHAPE_TOL", "BLENDER_MIN", "FLT_EPSILON", "CotanWeights",
@@ -165,7 +166,7 @@ def assemble(mesh, scheme: str, thresholds: str, vertices: np.ndarray | None = N
 
 
 @accel.heavy
-def cotan_weights(mesh, scheme: str = "tqlbo", *, thresholds: str = "relative") -> CotanWeights:
+def cotan_weights(mesh: Mesh, scheme: str = "tqlbo", *, thresholds: str = "relative") -> CotanWeights:
     """Cotangent weights W and ring areas of a hybrid mesh.
 
     Parameters

@@ -9,6 +9,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..errors import ParameterError
+from ..mesh import Mesh
+from ..types import Color, PathLike, Size, View
 from .backend import choose_backend, colormap, pil_modules, to_rgb, vtk_classes
 from .fields import Field, color_field, robust_range
 from .overlay import colorbar_height, colorbar_image, label_band
@@ -45,10 +47,12 @@ def family_colors(n: int, cmap: str = "coolwarm") -> list[tuple[float, float, fl
 # --------------------------------------------------------------------------
 # public API
 
-def render(mesh, path=None, *, color="curvature", reference=None, view="front", up: str = "y",
-           edges: bool = False, size=(800, 600), shading: str = "smooth", colorbar: bool = True,
-           cmap: str | None = None, clim=None, label: str | None = None, transparent: bool = False,
-           curvature_area: str = "barycentric", edge_color=EDGE_COLOR, line_width: float = 1.0) -> np.ndarray:
+def render(mesh: Mesh, path: PathLike | None = None, *, color: Color = "curvature", reference: Mesh | None = None,
+           view: View = "front", up: str = "y", edges: bool = False, size: Size = (800, 600),
+           shading: str = "smooth", colorbar: bool = True, cmap: str | None = None,
+           clim: Sequence[float] | None = None, label: str | None = None, transparent: bool = False,
+           curvature_area: str = "barycentric", edge_color: Color = EDGE_COLOR,
+           line_width: float = 1.0) -> np.ndarray:
     """Render one mesh offscreen; return the picture and write it as a PNG if ``path`` is given.
 
     Parameters
@@ -95,11 +99,15 @@ def render(mesh, path=None, *, color="curvature", reference=None, view="front", 
                          _whole_size=True)
 
 
-def render_meshes(meshes: Sequence, path=None, *, grid=None, colors=None, labels=None, color="none",
-                  reference=None, view="front", up: str = "y", edges: bool = False, size=(400, 400),
-                  shading: str = "smooth", colorbar: bool = True, cmap: str | None = None, clim=None,
-                  framing: str = "shared", transparent: bool = False, curvature_area: str = "barycentric",
-                  edge_color=EDGE_COLOR, line_width: float = 1.0, _whole_size: bool = False) -> np.ndarray:
+def render_meshes(meshes: Sequence[Mesh], path: PathLike | None = None, *,
+                  grid: tuple[int, int] | str | None = None, colors: Sequence[Color] | None = None,
+                  labels: Sequence[str] | None = None, color: Color | list = "none",
+                  reference: Mesh | Sequence[Mesh] | None = None, view: View = "front", up: str = "y",
+                  edges: bool | Sequence[bool] = False, size: Size = (400, 400),
+                  shading: str | Sequence[str] = "smooth", colorbar: bool = True, cmap: str | None = None,
+                  clim: Sequence[float] | None = None, framing: str = "shared", transparent: bool = False,
+                  curvature_area: str = "barycentric", edge_color: Color = EDGE_COLOR, line_width: float = 1.0,
+                  _whole_size: bool = False) -> np.ndarray:
     """Render several meshes side by side, with one camera, one colour range and one colour bar.
 
     Parameters

@@ -126,8 +126,9 @@ def vtk_classes():
         )
     except ImportError as exc:
         raise OptionalDependencyError("vtk", "render", "rendering") from exc
-    import vtkmodules.vtkRenderingOpenGL2 as opengl2
     from types import SimpleNamespace
+
+    import vtkmodules.vtkRenderingOpenGL2 as opengl2
 
     return SimpleNamespace(np=numpy_support, opengl2=opengl2, vtkObject=vtkObject, vtkPoints=vtkPoints,
                            vtkLookupTable=vtkLookupTable,

@@ -2,14 +2,12 @@
 
 from __future__ import annotations
 
-
 import numpy as np
 
 from ..errors import ParameterError
 from ..geometry.normals import vertex_normals
 from .backend import to_rgb
 from .style import CLAY
-
 
 # --------------------------------------------------------------------------
 # colour fields

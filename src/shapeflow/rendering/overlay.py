@@ -8,7 +8,6 @@ import numpy as np
 
 from .backend import colormap, pil_modules
 
-
 _FONT_PATH: list = []
 
 

@@ -10,8 +10,7 @@ from ..errors import ParameterError
 from ..geometry.normals import vertex_normals
 from .backend import colormap, window_class
 from .fields import Field
-from .style import BACKGROUND, CLAY, FRAMES, MARGIN, VIEWS, VIEW_ANGLE
-
+from .style import BACKGROUND, CLAY, FRAMES, MARGIN, VIEW_ANGLE, VIEWS
 
 # --------------------------------------------------------------------------
 # geometry -> VTK

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import numpy as np
 
-
 __all__ = ["VIEWS", "FRAMES", "VIEW_ANGLE", "MARGIN", "CLAY", "EDGE_COLOR", "BACKGROUND", "MSAA_MAX_FACES"]
 
 #: named views: (azimuth, elevation) in degrees about the up axis

@@ -15,6 +15,7 @@ from ..errors import ParameterError
 from ..flow.options import resolve_weights
 from ..geometry.normals import refresh_normals
 from ..mesh import Mesh
+from ..types import Falloff, Weights
 from .grid import CellGrid, sq_norms
 from .numbering import locality_order, renumbered
 from .stroke import as_point, as_points, check_falloff, positive, resample_polyline
@@ -71,7 +72,7 @@ class Dab:
 class BrushBase:
     """State shared by the brushes: working positions, spatial index, preview, undo."""
 
-    def __init__(self, mesh: Mesh, *, radius: float, falloff=None, weights=None,
+    def __init__(self, mesh: Mesh, *, radius: float, falloff: Falloff = None, weights: Weights = None,
                  undo_limit: int = 64, rebuild_fraction: float = 0.15):
         if not isinstance(mesh, Mesh):
             raise ParameterError(f"expected a shapeflow.Mesh, got {type(mesh).__name__}")

@@ -65,6 +65,7 @@ from ..errors import ParameterError
 from ..linalg.local import LOCAL_METHODS, LocalSolver
 from ..mesh import Mesh
 from ..operators.pattern import check_scheme
+from ..types import Falloff, Weights
 from .base import BrushBase, serialised
 from .cotan_cache import CotanCache
 from .dab import DabSystem
@@ -126,8 +127,8 @@ class Brush(CotanCache, DabSystem, BrushBase):
     """
 
     @accel.heavy
-    def __init__(self, mesh: Mesh, *, lam: float = -50.0, radius: float, falloff=None,
-                 lam_border: float = 0.0, weights=None, scheme: str = "tqlbo", normalized: bool = True,
+    def __init__(self, mesh: Mesh, *, lam: float = -50.0, radius: float, falloff: Falloff = None,
+                 lam_border: float = 0.0, weights: Weights = None, scheme: str = "tqlbo", normalized: bool = True,
                  solver: str = "auto", undo_limit: int = 64, rebuild_fraction: float = 0.15):
         super().__init__(mesh, radius=radius, falloff=falloff, weights=weights,
                          undo_limit=undo_limit, rebuild_fraction=rebuild_fraction)

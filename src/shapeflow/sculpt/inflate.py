@@ -6,6 +6,7 @@ import numpy as np
 
 from .. import params
 from ..mesh import Mesh
+from ..types import Falloff, Weights
 from .base import BrushBase, Dab, serialised
 from .numbering import csr_by, csr_ranges, unique_stamp
 from .stroke import apply_falloff
@@ -22,8 +23,8 @@ class InflateBrush(BrushBase):
     Same API and thread model (calls serialised by a lock) as :class:`Brush`.
     """
 
-    def __init__(self, mesh: Mesh, *, strength: float = 0.05, radius: float, falloff=None, weights=None,
-                 undo_limit: int = 64, rebuild_fraction: float = 0.15):
+    def __init__(self, mesh: Mesh, *, strength: float = 0.05, radius: float, falloff: Falloff = None,
+                 weights: Weights = None, undo_limit: int = 64, rebuild_fraction: float = 0.15):
         super().__init__(mesh, radius=radius, falloff=falloff, weights=weights,
                          undo_limit=undo_limit, rebuild_fraction=rebuild_fraction)
         self.strength = strength

@@ -12,14 +12,23 @@ from ..errors import ParameterError
 from ..geometry.normals import refresh_normals
 from ..mesh import WEIGHT, Mesh, Topology
 from .level import build_levels
-from .rules import (BOUNDARY_RULES, EDGE_ORDERS, SCHEMES, WEIGHT_RULES, as_topology, check_choice, check_levels,
-                    check_output_size, check_threads)
+from .rules import (
+    BOUNDARY_RULES,
+    EDGE_ORDERS,
+    SCHEMES,
+    WEIGHT_RULES,
+    as_topology,
+    check_choice,
+    check_levels,
+    check_output_size,
+    check_threads,
+)
 
 __all__ = ["subdivide", "subdivision_matrix"]
 
 
 @accel.heavy
-def subdivision_matrix(mesh, *, levels: int = 1, scheme: str = "catmull-clark",
+def subdivision_matrix(mesh: Mesh, *, levels: int = 1, scheme: str = "catmull-clark",
                        boundary: str = "smooth", edge_order: str = "blender",
                        blender_threads: int = 1) -> tuple[sp.csr_matrix, Topology]:
     """The sparse subdivision matrix of ``levels`` steps, and the new faces.

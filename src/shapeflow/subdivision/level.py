@@ -6,8 +6,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..mesh import Topology
-from .rules import (CREASE, DART, SMOOTH, as_topology, base_sharpness, edge_point_order,
-                    face_point_matrix, vertex_rules)
+from .rules import CREASE, DART, SMOOTH, as_topology, base_sharpness, edge_point_order, face_point_matrix, vertex_rules
 
 __all__ = ["Level", "Factored", "build_levels"]
 

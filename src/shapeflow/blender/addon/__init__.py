@@ -36,8 +36,9 @@ def _warm_import():
     """Import shapeflow and scipy once Blender is idle, not on the first click (~0.5 s)."""
     try:
         import scipy.sparse.linalg  # noqa: F401
-        import shapeflow.sculpt  # noqa: F401
+
         import shapeflow.flow  # noqa: F401
+        import shapeflow.sculpt  # noqa: F401
         import shapeflow.subdivision  # noqa: F401
     except Exception:  # noqa: BLE001 - the operators report import problems themselves
         pass

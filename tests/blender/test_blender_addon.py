@@ -39,7 +39,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 ADDON = "bl_ext.user_default.shapeflow"
 HAVE_BPY = importlib.util.find_spec("bpy") is not None
 needs_bpy = pytest.mark.skipif(
@@ -51,7 +51,7 @@ FLOW_KEYWORDS = ["lam", "lam_border", "iterations", "normalized", "preserve_volu
 
 
 # ==========================================================================
-# the Blender side (runs inside a bpy process: python tests/test_blender_addon.py ...)
+# the Blender side (runs inside a bpy process: python tests/blender/test_blender_addon.py ...)
 # ==========================================================================
 
 class _Recorder:
