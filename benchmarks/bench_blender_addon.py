@@ -80,6 +80,7 @@ def _worker(repeat: int, skip_modifier: bool) -> dict:
     if r != {"FINISHED"}:
         raise RuntimeError(f"operator returned {r} on the small mesh")
     import scipy
+
     import shapeflow
 
     res.update(shapeflow=shapeflow.__file__, scipy=scipy.__version__)

@@ -29,7 +29,6 @@ sys.path.insert(0, str(HERE))
 
 import shapeflow as sf  # noqa: E402
 
-
 LAST_TIMES: list = []   # the runs behind the last median_time (for the spread)
 
 

@@ -23,9 +23,9 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from meshgen import grid, icosphere
 
 import shapeflow as sf
-from meshgen import grid, icosphere
 
 MESH = icosphere(1)                 # 42 vertices, closed triangles
 OPEN = grid(5, 4, mix=0.5, seed=1)   # 20 vertices, quads and triangles, open

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import MESHES, requires_shared
 
 import shapeflow as sf
-from conftest import MESHES, requires_shared
 
 
 @requires_shared

@@ -7,16 +7,15 @@ results equal to rounding (the CG's parallel sums differ in order).
 
 from __future__ import annotations
 
+import meshgen
 import numpy as np
 import pytest
+from conftest import shared_mesh_paths
 
 import shapeflow as sf
 from shapeflow import accel as kernels
-from shapeflow.operators.weights import assemble as _assemble
 from shapeflow.operators.pattern import OperatorPattern as _Structure
-
-from conftest import shared_mesh_paths
-import meshgen
+from shapeflow.operators.weights import assemble as _assemble
 
 pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba (the 'fast' extra) not installed")
 

@@ -8,12 +8,11 @@ from __future__ import annotations
 
 import threading
 
+import meshgen
 import pytest
 
 import shapeflow as sf
 from shapeflow import accel as kernels
-
-import meshgen
 
 setter = kernels.madvise_setter()
 pytestmark = pytest.mark.skipif(setter is None, reason="this NumPy has no huge-page switch")

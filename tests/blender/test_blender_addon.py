@@ -213,6 +213,7 @@ def _drive_run(out: Path) -> None:
 
     def env():
         import scipy
+
         import shapeflow
 
         op = bpy.types.OBJECT_OT_shapeflow_flow
@@ -838,9 +839,8 @@ def test_library_never_imports_bpy():
 
 
 def test_shapeflow_wheel(tmp_path):
-    from shapeflow.blender.build import build_shapeflow_wheel
-
     import shapeflow
+    from shapeflow.blender.build import build_shapeflow_wheel
 
     p1 = build_shapeflow_wheel(tmp_path / "a")
     p2 = build_shapeflow_wheel(tmp_path / "b")

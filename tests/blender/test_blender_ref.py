@@ -13,7 +13,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from conftest import FIXTURES, ROOT, fixture_cases, load_fixture_case, requires_shared
 
 HARNESS = ROOT / "benchmarks" / "blender_ref.py"

@@ -8,7 +8,6 @@ import sys
 import pytest
 
 
-
 def run_cli(args, capsys):
     from shapeflow.cli import main
 

@@ -6,9 +6,9 @@ import subprocess
 import sys
 
 import pytest
+from conftest import MESHES, ROOT, requires_shared
 
 from shapeflow.cli import main
-from conftest import MESHES, ROOT, requires_shared
 
 
 def _info(capsys, *args):

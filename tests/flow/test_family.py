@@ -7,11 +7,11 @@ import importlib
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import MESHES, requires_shared
+from meshgen import cube_sphere, grid
 
 import shapeflow as sf
 from shapeflow.cli import main
-from conftest import MESHES, requires_shared
-from meshgen import cube_sphere, grid
 
 paths = importlib.import_module("shapeflow.flow.family_paths")
 from shapeflow.linalg.multishift import multishift_cg  # noqa: E402
@@ -183,22 +183,48 @@ def test_area_normalized_needs_direct_solves():
 
 
 def test_hard_members_split_off(monkeypatch):
-    """Members beyond the CG budget go to separate solves, the others stay shared."""
+    """Members beyond the CG budget go to separate solves, the others stay shared.
+
+    The budget, from the family docstring: a member is left to its own solve when the textbook CG
+    bound 1 + ½·sqrt(κ)·ln(2/rtol), κ = 1 + 2|λ|·max(D w / m), exceeds ratio × the shared cap
+    max(200, 10·sqrt(n) + 100).  Normalised operator, weights 1: m = D, so κ = 1 + 2|λ|."""
     c = cube_sphere(6, seed=4)
-    monkeypatch.setattr(paths, "SHARED_CG_MAX_RATIO", 0.2)   # budget ~ 0.2 x 240 iterations: |λ| up to ~10
-    report, _ = _agree(c, [-2.0, -5.0, -200.0, 0.0, 300.0])
+    ratio, rtol = 0.2, 1e-8
+    monkeypatch.setattr(paths, "SHARED_CG_MAX_RATIO", ratio)
+    lams = [-2.0, -5.0, -200.0, 0.0, 300.0]
+    cap = max(200, 10 * int(np.sqrt(c.n_vertices)) + 100)
+    bound = [1.0 + 0.5 * np.sqrt(1.0 + 2.0 * abs(lam)) * np.log(2.0 / rtol) for lam in lams]
+    expected = [m for m, lam in enumerate(lams) if lam != 0.0 and bound[m] > ratio * cap]
+    shared = {abs(lam) for m, lam in enumerate(lams) if lam != 0.0 and m not in expected}
+    assert expected and shared                        # the case exercises both paths
+    report, _ = _agree(c, lams, rtol=rtol)
     assert report.path == "multishift"
-    assert report.fallback_members == [2, 4] and report.shifts == 2
+    assert report.fallback_members == expected and report.shifts == len(shared)
     assert isinstance(report.member_reports[2], sf.FlowReport) and report.member_reports[0] is None
 
 
 def test_unconverged_members_are_redone(monkeypatch):
+    """With the shared CG cut at 15 iterations, exactly the members it left unconverged are redone."""
     c = cube_sphere(6, seed=5)
     real = multishift_cg
-    monkeypatch.setattr(paths, "multishift_cg", lambda *a, **kw: real(*a, **{**kw, "maxiter": 15}))
-    report, _ = _agree(c, [-1.0, -150.0, -400.0])
+    runs = []
+
+    def capped(*a, **kw):
+        res = real(*a, **{**kw, "maxiter": 15})
+        runs.append(res)
+        return res
+
+    monkeypatch.setattr(paths, "multishift_cg", capped)
+    lams = [-1.0, -150.0, -400.0]
+    report, _ = _agree(c, lams)
     assert report.path == "multishift"
-    assert report.fallback_members == [1, 2]
+    (res,) = runs
+    # shifts are 1/|λ| - 1/|λ|max, in the members' order of decreasing |λ|: member m <-> shift
+    sigma = 1.0 / np.abs(lams)
+    order = np.argsort(sigma - sigma.min(), kind="stable")
+    unconverged = {int(order[i]) for i in np.flatnonzero(~res.converged.all(axis=1))}
+    assert unconverged and len(unconverged) < len(lams)   # the case exercises both outcomes
+    assert report.fallback_members == sorted(unconverged)
     assert any("did not converge" in n for n in report.notes)
 
 

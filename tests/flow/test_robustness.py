@@ -8,14 +8,13 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import MESHES, requires_shared
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from meshgen import grid, icosphere, random_rotation
 
 import shapeflow as sf
-from conftest import MESHES, requires_shared
-from meshgen import grid, icosphere, random_rotation
 from shapeflow.errors import MeshError, ParameterError
-
 
 # ----------------------------------------------------------------------------
 # random hybrid meshes

@@ -8,11 +8,11 @@ import struct
 
 import numpy as np
 import pytest
+from conftest import MESHES, requires_shared, shared_mesh_paths
 
 import shapeflow as sf
 import shapeflow.io as sio
 from shapeflow.errors import MeshError, ParameterError
-from conftest import MESHES, requires_shared, shared_mesh_paths
 
 # --------------------------------------------------------------------------
 # the hand-written interleaved mesh: tri, quad, quad, tri, pentagon, tri,

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import meshio   # test dependencies (the test extra)
+import meshio  # test dependencies (the test extra)
 import numpy as np
 import plyfile
 import pytest

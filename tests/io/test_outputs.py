@@ -13,8 +13,8 @@ import pytest
 
 import shapeflow as sf
 from shapeflow import io as sio
-from shapeflow.io import atomic
 from shapeflow.errors import OutputError
+from shapeflow.io import atomic
 
 
 def tri():

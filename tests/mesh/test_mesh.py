@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-import shapeflow as sf
 from conftest import FIXTURES, MESHES, load_fixture_mesh, requires_shared
 from meshgen import grid
 
+import shapeflow as sf
 
 # --- construction and the one normaliser ------------------------------------------
 

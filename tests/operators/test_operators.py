@@ -5,11 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
-
-import shapeflow as sf
 from conftest import requires_shared, shared_mesh_paths
 from meshgen import cube_sphere, grid, icosphere, ngon_disk, random_rotation
 
+import shapeflow as sf
 
 # --- independent slow reference implementations -----------------------------
 
@@ -43,7 +42,7 @@ def test_triangle_mesh_equals_classic_cotangent_matrix():
 
 
 def test_triangle_mesh_matches_libigl():
-    import igl   # a test dependency (the test extra): an independent implementation
+    import igl  # a test dependency (the test extra): an independent implementation
     m = icosphere(2)
     W, _ = sf.cotan_weights(m)
     C = igl.cotmatrix(m.vertices, m.faces_as_array())  # libigl: C_ij = ½(cot a + cot b), negative definite

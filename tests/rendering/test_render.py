@@ -9,14 +9,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from meshgen import cube_sphere, grid
 
 import shapeflow as sf
 from shapeflow import rendering as R
-from shapeflow.rendering import api as RA, backend as RB, fields as RF, scene as RS
 from shapeflow.cli import main
 from shapeflow.errors import OptionalDependencyError, ParameterError
-
-from meshgen import cube_sphere, grid
+from shapeflow.rendering import api as RA
+from shapeflow.rendering import backend as RB
+from shapeflow.rendering import fields as RF
+from shapeflow.rendering import scene as RS
 
 HAVE_RENDER = R.available()
 needs_render = pytest.mark.skipif(

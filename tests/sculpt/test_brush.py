@@ -3,16 +3,15 @@
 from __future__ import annotations
 
 import json
-import tracemalloc
-
 import sys
+import tracemalloc
 
 import numpy as np
 import pytest
-
-import shapeflow as sf
 from conftest import MESHES, requires_shared
 from meshgen import cube_sphere, grid, icosphere, ngon_disk, random_rotation
+
+import shapeflow as sf
 from shapeflow.cli import main
 from shapeflow.geometry import vertex_normals
 from shapeflow.operators.weights import assemble as _assemble

@@ -18,13 +18,12 @@ import re
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from conftest import ROOT, fixture_cases, load_fixture_case, load_fixture_mesh, requires_shared
 from scipy.spatial import cKDTree
 
 import shapeflow as sf
 from shapeflow.errors import ParameterError
 from shapeflow.subdivision import subdivide, subdivision_matrix
-
-from conftest import ROOT, fixture_cases, load_fixture_case, load_fixture_mesh, requires_shared
 
 TOL = 1e-5  # × bounding-box diagonal (Blender works in float32)
 
