@@ -13,7 +13,7 @@ from __future__ import annotations
 import functools
 import logging
 
-__all__ = ["FALLBACKS", "note_fallback", "SingleThreadBLAS", "split_routines"]
+__all__ = ["FALLBACKS", "note_fallback", "loaded_openblas", "SingleThreadBLAS", "split_routines"]
 
 
 #: why an optional fast path is not used in this process (key -> reason); each is logged once
@@ -28,6 +28,19 @@ def note_fallback(key: str, reason: str) -> None:
     if key not in FALLBACKS:
         FALLBACKS[key] = reason
         _log.info("shapeflow: %s", reason)
+
+
+def loaded_openblas() -> list[str]:
+    """Paths of the OpenBLAS that SciPy's wheels ship (``scipy.libs/``, not NumPy's) when this process
+    has already loaded it (Linux: read from ``/proc/self/maps``; elsewhere none, and LAPACK keeps its
+    threads, recorded in :data:`FALLBACKS`)."""
+    try:
+        with open("/proc/self/maps") as f:
+            paths = {line.split()[-1] for line in f
+                     if "libscipy_openblas" in line and "/scipy.libs/" in line}
+    except OSError:
+        return []
+    return sorted(paths)
 
 
 class SingleThreadBLAS:
@@ -52,14 +65,11 @@ class SingleThreadBLAS:
         cls._how = ""
         try:
             import ctypes
-            import glob
-            import os
 
-            import scipy
+            import scipy.linalg  # noqa: F401  (loads SciPy's OpenBLAS)
 
-            libdir = os.path.join(os.path.dirname(os.path.dirname(scipy.__file__)), "scipy.libs")
-            for path in sorted(glob.glob(os.path.join(libdir, "libscipy_openblas*.so"))):
-                lib = ctypes.CDLL(path)
+            for path in loaded_openblas():
+                lib = ctypes.CDLL(path)   # already in the process: a new handle, nothing loaded
                 if hasattr(lib, "openblas_set_num_threads_local"):
                     f = lib.openblas_set_num_threads_local
                     f.argtypes = [ctypes.c_int]

@@ -267,12 +267,12 @@ def duplicate_faces(t: Topology) -> np.ndarray:
     sizes = t.face_sizes
     dups = []
     for s in np.unique(sizes):
-        fs = np.flatnonzero(sizes == s)
-        block = np.sort(t.face_indices[t.face_offsets[fs][:, None] + np.arange(s)], axis=1)
+        same_size = np.flatnonzero(sizes == s)
+        block = np.sort(t.face_indices[t.face_offsets[same_size][:, None] + np.arange(s)], axis=1)
         _, first = np.unique(block, axis=0, return_index=True)
-        is_first = np.zeros(fs.size, dtype=bool)
+        is_first = np.zeros(same_size.size, dtype=bool)
         is_first[first] = True
-        dups.append(fs[~is_first])
+        dups.append(same_size[~is_first])
     return np.sort(np.concatenate(dups)) if dups else np.zeros(0, np.int64)
 
 

@@ -47,8 +47,8 @@ def colorbar_font_size(width: int) -> int:
 
 def colorbar_height(width: int) -> int:
     """Height of the colour-bar band: title line, bar, tick labels."""
-    fs = colorbar_font_size(width)
-    return int(round(fs * 1.5 + max(8, 0.9 * fs) + fs * 1.6 + 6))
+    font_px = colorbar_font_size(width)
+    return int(round(font_px * 1.5 + max(8, 0.9 * font_px) + font_px * 1.6 + 6))
 
 
 def colorbar_image(width: int, height: int, cmap_name: str, clim, label: str, diverging: bool,
@@ -59,16 +59,16 @@ def colorbar_image(width: int, height: int, cmap_name: str, clim, label: str, di
     bg = (255, 255, 255, 0) if transparent else (255, 255, 255)
     im = Image.new(mode, (width, height), bg)
     draw = ImageDraw.Draw(im)
-    fs = colorbar_font_size(width)
-    font = load_font(fs)
+    font_px = colorbar_font_size(width)
+    font = load_font(font_px)
     ink = (40, 40, 40, 255) if transparent else (40, 40, 40)
-    bar_w = int(min(0.5 * width, 40 * fs))
-    bar_h = int(max(8, 0.9 * fs))
+    bar_w = int(min(0.5 * width, 40 * font_px))
+    bar_h = int(max(8, 0.9 * font_px))
     x0 = (width - bar_w) // 2
-    y0 = int(round(fs * 1.5))
+    y0 = int(round(font_px * 1.5))
     if label:
         tw = draw.textlength(label, font=font)
-        draw.text(((width - tw) / 2, y0 - fs * 1.35), label, fill=ink, font=font)
+        draw.text(((width - tw) / 2, y0 - font_px * 1.35), label, fill=ink, font=font)
     grad = colormap(cmap_name)(np.linspace(0, 1, bar_w))[:, :3]
     grad = (np.round(grad * 255)).astype(np.uint8)
     strip = np.repeat(grad[None], bar_h, axis=0)
@@ -94,12 +94,12 @@ def label_band(width: int, height: int, text: str, transparent: bool) -> np.ndar
     mode = "RGBA" if transparent else "RGB"
     im = Image.new(mode, (width, height), (255, 255, 255, 0) if transparent else (255, 255, 255))
     draw = ImageDraw.Draw(im)
-    fs = max(10, int(height * 0.66))
-    font = load_font(fs)
-    while fs > 8 and draw.textlength(text, font=font) > width - 4:
-        fs -= 1
-        font = load_font(fs)
+    font_px = max(10, int(height * 0.66))
+    font = load_font(font_px)
+    while font_px > 8 and draw.textlength(text, font=font) > width - 4:
+        font_px -= 1
+        font = load_font(font_px)
     tw = draw.textlength(text, font=font)
-    draw.text(((width - tw) / 2, (height - fs) / 2 - 1), text, fill=(30, 30, 30, 255) if transparent else (30, 30, 30),
-              font=font)
+    draw.text(((width - tw) / 2, (height - font_px) / 2 - 1), text,
+              fill=(30, 30, 30, 255) if transparent else (30, 30, 30), font=font)
     return np.asarray(im)

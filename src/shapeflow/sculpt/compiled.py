@@ -13,8 +13,8 @@ from ..geometry.compiled import corner_triangle
 
 
 @njit(cache=True)
-def brush_update_triangles(tris, tv, tp, tw, taw, VT, tval, tarea, update_area, tbad, vlock, pw,
-                           ttri, pshort, short2, shape_tol, flips):
+def brush_update_triangles(tris, tri_vertices, tri_pairs, tri_weight, tri_area_weight, VT, tri_cot, tri_area,
+                           update_area, tri_degenerate, lock_count, pw, ttri, pshort, short2, shape_tol, flips):
     """Recompute triangles ``tris`` of the brush cache in one pass.
 
     Same formulas and order of operations per triangle as ``geometry.cotangent.tri_geometry``
@@ -26,9 +26,9 @@ def brush_update_triangles(tris, tv, tp, tw, taw, VT, tval, tarea, update_area, 
     nf = 0
     for q in range(tris.size):
         t = tris[q]
-        a = tv[0, t]
-        b = tv[1, t]
-        d = tv[2, t]
+        a = tri_vertices[0, t]
+        b = tri_vertices[1, t]
+        d = tri_vertices[2, t]
         sq2, sq0, dot, dbl = corner_triangle(VT[0, a], VT[1, a], VT[2, a], VT[0, b], VT[1, b], VT[2, b],
                                      VT[0, d], VT[1, d], VT[2, d])
         sx = VT[0, d] - VT[0, a]       # the skip side from its own end points, as _tri_geometry
@@ -37,34 +37,34 @@ def brush_update_triangles(tris, tv, tp, tw, taw, VT, tval, tarea, update_area, 
         sq1 = sx * sx + sy * sy + sz * sz
         inv = 1.0 / dbl if dbl > 0 else 0.0
         bad = dbl <= shape_tol * max(max(sq0, sq1), sq2)
-        w = 0.0 if bad else tw[t]
+        w = 0.0 if bad else tri_weight[t]
         if update_area:
-            tarea[t] = 0.5 * dbl * taw[t]
+            tri_area[t] = 0.5 * dbl * tri_area_weight[t]
         new0 = ((sq2 - dot) * inv) * w
         new1 = (dot * inv) * w
         new2 = ((sq0 - dot) * inv) * w
-        pw[tp[0, t]] += new0 - tval[0, t]
-        pw[tp[1, t]] += new1 - tval[1, t]
-        pw[tp[2, t]] += new2 - tval[2, t]
-        tval[0, t] = new0
-        tval[1, t] = new1
-        tval[2, t] = new2
-        if tbad[t] != bad:
+        pw[tri_pairs[0, t]] += new0 - tri_cot[0, t]
+        pw[tri_pairs[1, t]] += new1 - tri_cot[1, t]
+        pw[tri_pairs[2, t]] += new2 - tri_cot[2, t]
+        tri_cot[0, t] = new0
+        tri_cot[1, t] = new1
+        tri_cot[2, t] = new2
+        if tri_degenerate[t] != bad:
             delta = 1 if bad else -1
-            vlock[a] += delta
-            vlock[b] += delta
-            vlock[d] += delta
-            tbad[t] = bad
-        e = tp[0, t]
+            lock_count[a] += delta
+            lock_count[b] += delta
+            lock_count[d] += delta
+            tri_degenerate[t] = bad
+        e = tri_pairs[0, t]
         if (sq0 <= short2) != pshort[e]:
             flips[nf] = e
             nf += 1
         if ttri[t]:
-            e = tp[1, t]
+            e = tri_pairs[1, t]
             if (sq1 <= short2) != pshort[e]:
                 flips[nf] = e
                 nf += 1
-            e = tp[2, t]
+            e = tri_pairs[2, t]
             if (sq2 <= short2) != pshort[e]:
                 flips[nf] = e
                 nf += 1

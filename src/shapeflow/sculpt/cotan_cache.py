@@ -34,11 +34,11 @@ class CotanCache:
         mesh = self._imesh          # internal numbering (RCM order: sorted unknowns have a narrow band)
         t = mesh.topology
         n = self._n
-        st = operator_pattern(mesh, self.scheme)
+        pattern = operator_pattern(mesh, self.scheme)
         E = t.n_edges
         # unique vertex pairs: the operator's pair list may repeat a chord (once per
         # contribution); here every pair of vertices has one id
-        keys = st.pairs[:, 0].astype(np.int64) * n + st.pairs[:, 1]   # pairs may be int32
+        keys = pattern.pairs[:, 0].astype(np.int64) * n + pattern.pairs[:, 1]   # pairs may be int32
         ukeys, uinv = np.unique(keys, return_inverse=True)
         P = ukeys.size
         upairs = np.stack([ukeys // n, ukeys % n], axis=1)
@@ -46,7 +46,8 @@ class CotanCache:
         self._uedge = np.zeros(P + 1, dtype=bool)      # pairs that are mesh edges
         self._uedge[uinv[:E]] = True
         self._edge_uid = uinv[:E]
-        T, self._tv, self._tp, self._tw, self._taw, tface = self._triangles(mesh, st, ukeys, uinv)
+        T, self._tri_vertices, self._tri_pairs, self._tri_weight, self._tri_area_weight, tface = \
+            self._triangles(mesh, pattern, ukeys, uinv)
         self._P, self._E = P, E
         self._ttri = np.zeros(T, dtype=bool)            # triangles that are whole triangle faces
         self._ttri[np.flatnonzero(t.face_sizes[tface] == 3)] = True
@@ -77,11 +78,11 @@ class CotanCache:
         self._vb_nb = np.concatenate([be[:, 1], be[:, 0]])[order]
         # caches
         self._VT = np.ascontiguousarray(self._V.T)   # component-major copy of the positions
-        self._tval = np.zeros((3, T))      # w_t · cot_k (0 if degenerate), added to pair tp[k, t]
-        self._tarea = np.zeros(T)          # area weight · area (kept for eq. 9 only)
-        self._tbad = np.zeros(T, dtype=bool)
+        self._tri_cot = np.zeros((3, T))      # w_t · cot_k (0 if degenerate), added to pair tri_pairs[k, t]
+        self._tri_area = np.zeros(T)          # area weight · area (kept for eq. 9 only)
+        self._tri_degenerate = np.zeros(T, dtype=bool)
         self._pshort = np.zeros(P + 1, dtype=bool)   # edges shorter than flow's relative threshold
-        self._vlock = np.zeros(n, dtype=np.int64)    # degenerate triangles + short edges at each vertex
+        self._lock_count = np.zeros(n, dtype=np.int64)    # degenerate triangles + short edges at each vertex
         self._fstamp = np.zeros(t.n_faces, dtype=np.int64)
         self._tri_buf = None               # compiled cache update: the moved triangles
         # mean edge length h (flow's "relative" thresholds), from the initial positions
@@ -92,14 +93,14 @@ class CotanCache:
         self._short2 = (REL_EDGE_TOL * h) ** 2
         self._update_triangles(np.arange(T), initial=True)
         self._pw = np.zeros(P + 1)         # pair weights w_ij, plus a zero for "no pair"
-        self._pw[:P] = np.bincount(self._tp.reshape(-1), self._tval.reshape(-1), minlength=P)[:P]
+        self._pw[:P] = np.bincount(self._tri_pairs.reshape(-1), self._tri_cot.reshape(-1), minlength=P)[:P]
         short = el2 <= self._short2
         self._pshort[self._edge_uid] = short
         if short.any():
-            self._vlock += np.bincount(E_[short].reshape(-1), minlength=n)
+            self._lock_count += np.bincount(E_[short].reshape(-1), minlength=n)
 
     @staticmethod
-    def _triangles(mesh: Mesh, st, ukeys: np.ndarray, uinv: np.ndarray):
+    def _triangles(mesh: Mesh, pattern, ukeys: np.ndarray, uinv: np.ndarray):
         """Every weighted triangle of the operator, numbered face by face.
 
         A triangle face is one triangle with 3× its corner-triangle weight (its
@@ -112,28 +113,29 @@ class CotanCache:
         """
         t = mesh.topology
         sizes, offs = t.face_sizes, t.face_offsets
-        fi, nxt, prv, ce = st.fi, st.nxt, st.prv, st.corner_edge
+        fi, nxt, prv, ce = pattern.fi, pattern.nxt, pattern.prv, pattern.corner_edge
         c = fi.size
         cs = np.repeat(sizes, sizes)
         first = np.repeat(offs[:-1], sizes)
         mc = np.flatnonzero((cs > 3) | (np.arange(c) == first))
         mult = np.where(cs[mc] == 3, 3.0, 1.0)
-        tv = [np.stack([fi[prv[mc]], fi[mc], fi[nxt[mc]]])]
-        tp = [uinv[np.stack([ce[mc], st.skip_pair[mc], ce[prv[mc]]])]]
-        tw = [st.corner_w[mc] * mult]
-        taw = [st.corner_aw[mc] * mult]
+        tri_vertices = [np.stack([fi[prv[mc]], fi[mc], fi[nxt[mc]]])]
+        tri_pairs = [uinv[np.stack([ce[mc], pattern.skip_pair[mc], ce[prv[mc]]])]]
+        tri_weight = [pattern.corner_w[mc] * mult]
+        tri_area_weight = [pattern.corner_aw[mc] * mult]
         tf = [t.corner_face[mc]]
-        if st.extra_tris.size:
-            tv.append(st.extra_tris.T)
-            tp.append(uinv[st.extra_pair].T)
-            tw.append(st.extra_w)
-            taw.append(st.extra_w)
-            tf.append(st.extra_face)
+        if pattern.extra_tris.size:
+            tri_vertices.append(pattern.extra_tris.T)
+            tri_pairs.append(uinv[pattern.extra_pair].T)
+            tri_weight.append(pattern.extra_w)
+            tri_area_weight.append(pattern.extra_w)
+            tf.append(pattern.extra_face)
         face = np.concatenate(tf)
         order = np.argsort(face, kind="stable")
-        tv = np.ascontiguousarray(np.concatenate(tv, axis=1)[:, order].astype(np.int64))
-        tp = np.ascontiguousarray(np.concatenate(tp, axis=1)[:, order].astype(np.int64))
-        return (order.size, tv, tp, np.concatenate(tw)[order], np.concatenate(taw)[order], face[order])
+        tri_vertices = np.ascontiguousarray(np.concatenate(tri_vertices, axis=1)[:, order].astype(np.int64))
+        tri_pairs = np.ascontiguousarray(np.concatenate(tri_pairs, axis=1)[:, order].astype(np.int64))
+        return (order.size, tri_vertices, tri_pairs, np.concatenate(tri_weight)[order],
+                np.concatenate(tri_area_weight)[order], face[order])
 
     @staticmethod
     def _missing_face_pairs(mesh: Mesh, pairs: np.ndarray, n: int) -> np.ndarray:
@@ -162,47 +164,48 @@ class CotanCache:
         change (new − old), and the locks (degenerate triangles, short edges)
         by counting flips.
         """
-        tv, tp, tval = self._tv, self._tp, self._tval
-        K = None if initial else accel.compiled("sculpt", self._n, min_size=0)
-        if K is not None:   # the branch below in one compiled pass
-            flips = np.empty(3 * tris.size, self._tp.dtype)
-            nf = K.brush_update_triangles(tris, tv, tp, self._tw, self._taw, self._VT, tval, self._tarea,
-                                          not self.normalized, self._tbad, self._vlock, self._pw, self._ttri,
-                                          self._pshort, self._short2, REL_SHAPE_TOL, flips)
+        tri_vertices, tri_pairs, tri_cot = self._tri_vertices, self._tri_pairs, self._tri_cot
+        fast = None if initial else accel.compiled("sculpt", self._n, min_size=0)
+        if fast is not None:   # the branch below in one compiled pass
+            flips = np.empty(3 * tris.size, self._tri_pairs.dtype)
+            nf = fast.brush_update_triangles(tris, tri_vertices, tri_pairs, self._tri_weight, self._tri_area_weight,
+                                             self._VT, tri_cot, self._tri_area, not self.normalized,
+                                             self._tri_degenerate, self._lock_count, self._pw, self._ttri,
+                                             self._pshort, self._short2, REL_SHAPE_TOL, flips)
             if nf:
                 self._flip_short(np.unique(flips[:nf]))
             return
-        tvs = (tv[0].take(tris, mode="clip"), tv[1].take(tris, mode="clip"), tv[2].take(tris, mode="clip"))
+        tvs = tuple(tri_vertices[q].take(tris, mode="clip") for q in range(3))
         cot, dbl, sq = tri_geometry(self._VT, tvs)
         bad = dbl <= REL_SHAPE_TOL * np.maximum(np.maximum(sq[0], sq[1]), sq[2])
-        w = self._tw.take(tris, mode="clip")
+        w = self._tri_weight.take(tris, mode="clip")
         anybad = bad.any()
         if anybad:
             w = np.where(bad, 0.0, w)
         if not self.normalized or initial:
-            self._tarea[tris] = 0.5 * dbl * self._taw[tris]
+            self._tri_area[tris] = 0.5 * dbl * self._tri_area_weight[tris]
         if initial:
             for k in range(3):
-                tval[k][tris] = cot[k] * w
-            self._tbad[tris] = bad
+                tri_cot[k][tris] = cot[k] * w
+            self._tri_degenerate[tris] = bad
             if anybad:
-                self._vlock += np.bincount(np.concatenate([v[bad] for v in tvs]), minlength=self._n)
+                self._lock_count += np.bincount(np.concatenate([v[bad] for v in tvs]), minlength=self._n)
             return
         pw = self._pw
         tps = []
         for k in range(3):
             new = cot[k] * w
-            row = tval[k]
+            row = tri_cot[k]
             old = row.take(tris, mode="clip")
             row[tris] = new
-            tpk = tp[k].take(tris, mode="clip")
+            tpk = tri_pairs[k].take(tris, mode="clip")
             tps.append(tpk)
             np.add.at(pw, tpk, new - old)
-        chg = self._tbad.take(tris, mode="clip") != bad
+        chg = self._tri_degenerate.take(tris, mode="clip") != bad
         if chg.any():
             delta = np.where(bad[chg], 1, -1)
-            np.add.at(self._vlock, np.concatenate([v[chg] for v in tvs]), np.tile(delta, 3))
-            self._tbad[tris[chg]] = bad[chg]
+            np.add.at(self._lock_count, np.concatenate([v[chg] for v in tvs]), np.tile(delta, 3))
+            self._tri_degenerate[tris[chg]] = bad[chg]
         # short edges: side 0 of every triangle is an edge or a chord, the sides of
         # triangle faces are edges; flips are rare
         short2, pshort = self._short2, self._pshort
@@ -226,7 +229,7 @@ class CotanCache:
         chg = short != self._pshort[e]
         if chg.any():
             self._pshort[e[chg]] = short[chg]
-            np.add.at(self._vlock, ends[chg].reshape(-1), np.repeat(np.where(short[chg], 1, -1), 2))
+            np.add.at(self._lock_count, ends[chg].reshape(-1), np.repeat(np.where(short[chg], 1, -1), 2))
 
     def _moved(self, idx: np.ndarray) -> None:
         """Recompute the triangles of the faces touching ``idx``."""
@@ -234,11 +237,11 @@ class CotanCache:
         VT = self._VT
         for q in range(3):
             VT[q][idx] = new[:, q]
-        K = accel.compiled("sculpt", self._n, min_size=0)
-        if K is not None:   # the same triangles, in first-seen order, in one compiled pass
+        fast = accel.compiled("sculpt", self._n, min_size=0)
+        if fast is not None:   # the same triangles, in first-seen order, in one compiled pass
             if self._tri_buf is None:
-                self._tri_buf = np.empty(self._tv.shape[1], dtype=np.int64)
-            nt = K.brush_moved_triangles(idx, self._vf_ptr, self._vf_face, self._ft_ptr, self._fstamp,
+                self._tri_buf = np.empty(self._tri_vertices.shape[1], dtype=np.int64)
+            nt = fast.brush_moved_triangles(idx, self._vf_ptr, self._vf_face, self._ft_ptr, self._fstamp,
                                          self._tri_buf)
             self._update_triangles(self._tri_buf[:nt])
             return
@@ -254,21 +257,21 @@ class CotanCache:
         Pair weights are updated incrementally after each dab; this removes the
         (round-off sized) drift that many thousands of dabs may accumulate.
         """
-        T = self._tv.shape[1]
-        self._tval[:] = 0.0
-        self._tbad[:] = False
-        self._vlock[:] = 0
+        T = self._tri_vertices.shape[1]
+        self._tri_cot[:] = 0.0
+        self._tri_degenerate[:] = False
+        self._lock_count[:] = 0
         self._update_triangles(np.arange(T), initial=True)
         P = self._P
         self._pw[:] = 0.0
-        self._pw[:P] = np.bincount(self._tp.reshape(-1), self._tval.reshape(-1), minlength=P)[:P]
+        self._pw[:P] = np.bincount(self._tri_pairs.reshape(-1), self._tri_cot.reshape(-1), minlength=P)[:P]
         E_ = self._imesh.topology.edges
         d = self._V[E_[:, 0]] - self._V[E_[:, 1]]
         short = np.einsum("ij,ij->i", d, d) <= self._short2
         self._pshort[:] = False
         self._pshort[self._edge_uid] = short
         if short.any():
-            self._vlock += np.bincount(E_[short].reshape(-1), minlength=self._n)
+            self._lock_count += np.bincount(E_[short].reshape(-1), minlength=self._n)
 
     @serialised
     def pair_weights(self):
@@ -283,13 +286,13 @@ class CotanCache:
     def locked(self) -> np.ndarray:
         """(n,) bool: vertices touching a degenerate triangle or a too-short edge
         (kept fixed, as :func:`shapeflow.flow` does), at the current positions."""
-        return self._vlock[self._inv] > 0
+        return self._lock_count[self._inv] > 0
 
     def _ring_areas(self, S: np.ndarray) -> np.ndarray:
         """Ring area (eq. 5) of vertices ``S`` from the cached triangle areas."""
         if self._vt_ptr is None:
-            T = self._tv.shape[1]
-            self._vt_ptr, order = csr_by(self._tv.reshape(-1), self._n)
+            T = self._tri_vertices.shape[1]
+            self._vt_ptr, order = csr_by(self._tri_vertices.reshape(-1), self._n)
             self._vt_tri = order % T
         te, tl = csr_ranges(self._vt_ptr, S)
-        return np.bincount(np.repeat(np.arange(S.size), tl), self._tarea[self._vt_tri[te]], minlength=S.size)
+        return np.bincount(np.repeat(np.arange(S.size), tl), self._tri_area[self._vt_tri[te]], minlength=S.size)

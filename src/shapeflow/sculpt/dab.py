@@ -46,11 +46,11 @@ class DabSystem:
         ns = S.size
         slot = self._slot
         slot[S] = np.arange(ns)
-        K = accel.compiled("sculpt", self._n, min_size=0)
-        if K is not None:   # the same rim and degrees in one compiled pass; _solve_region walks again
+        fast = accel.compiled("sculpt", self._n, min_size=0)
+        if fast is not None:   # the same rim and degrees in one compiled pass; _solve_region walks again
             rim = np.empty(ns, dtype=bool)
             deg = np.empty(ns)
-            K.brush_classify(S, slot, self._vn_ptr, self._vn_nb, self._vn_pair, self._pw, rim, deg)
+            fast.brush_classify(S, slot, self._vn_ptr, self._vn_nb, self._vn_pair, self._pw, rim, deg)
             rowid = snb = pwe = None
         else:
             ent, lens = csr_ranges(self._vn_ptr, S)
@@ -66,7 +66,7 @@ class DabSystem:
             w = w * apply_falloff(self._falloff_fn, d / self._radius)
         mass = deg if self.normalized else 2.0 * self._ring_areas(S)
         bnd = self._bmask[S]
-        cand = ~rim & (self._vlock[S] == 0) & (w > 0)
+        cand = ~rim & (self._lock_count[S] == 0) & (w > 0)
         if self._lam != 0.0:
             free_i = cand & ~bnd & (mass > 0) & (deg > 0)
         else:
@@ -199,7 +199,7 @@ class DabSystem:
         ent, lens = csr_ranges(self._vb_ptr, Ub)
         row = np.repeat(np.arange(Rb.size), lens)
         nb = self._vb_nb[ent]
-        keep = self._vlock[nb] == 0             # flow drops umbrella edges with a locked end
+        keep = self._lock_count[nb] == 0             # flow drops umbrella edges with a locked end
         row, nb = row[keep], nb[keep]
         snb = self._slot[nb]                    # face neighbours of non-rim vertices: inside
         diff = V.take(Ub[row], axis=0, mode="clip") - V.take(nb, axis=0, mode="clip")

@@ -45,7 +45,7 @@ class CellGrid:
         self._dist = np.empty(n)
 
     def query(self, V: np.ndarray, far: np.ndarray, c: np.ndarray, R: float, r: float):
-        K = accel.compiled("sculpt", V.shape[0], min_size=0)
-        m = K.grid_query(self.keys, self.starts, self.order, self.dims, self.lo, self.h, V, far,
+        fast = accel.compiled("sculpt", V.shape[0], min_size=0)
+        m = fast.grid_query(self.keys, self.starts, self.order, self.dims, self.lo, self.h, V, far,
                          float(c[0]), float(c[1]), float(c[2]), float(R), float(r), self._out, self._dist)
         return self._out[:m].copy(), self._dist[:m].copy()
