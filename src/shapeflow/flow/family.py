@@ -207,12 +207,12 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
         tick(k)
         return finish(out)
 
-    op = flow_solver.operator()
-    report.locked = int(op.locked.sum())
-    report.degenerate_triangles = op.n_bad
-    report.boundary_vertices = int(op.boundary.sum())
+    operator = flow_solver.operator()
+    report.locked = int(operator.locked.sum())
+    report.degenerate_triangles = operator.n_bad
+    report.boundary_vertices = int(operator.boundary.sum())
 
-    why_not, plan = choose_path(flow_solver, op, lam_arr, iterations, strategy, report.notes)
+    why_not, plan = choose_path(flow_solver, operator, lam_arr, iterations, strategy, report.notes)
     if strategy == "multishift" and why_not is not None:
         raise ParameterError(f"the multi-shift solve does not apply here: {why_not}")
 
@@ -226,7 +226,7 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
     report.path = "multishift"
     report.reason = ("one iteration: every member solves (σI + M) Y = b with σ = 1/|λ| "
                      "for one matrix M and one right-hand side b")
-    out = shared_solve(flow_solver, op, plan, lam_arr, ax, preserve_volume, report, tick)
+    out = shared_solve(flow_solver, operator, plan, lam_arr, ax, preserve_volume, report, tick)
     if report.fallback_members:
         separate_solves(flow_solver, lam_arr, report.fallback_members, out, report, iterations=iterations,
                         preserve_volume=preserve_volume, axes=ax, update=update, tick=tick)
@@ -259,7 +259,7 @@ def nothing_to_do(flow_solver: FlowSolver, lams: np.ndarray, iterations: int, ax
     return None
 
 
-def choose_path(flow_solver: FlowSolver, op, lams: np.ndarray, iterations: int, strategy: str, notes: list):
+def choose_path(flow_solver: FlowSolver, operator, lams: np.ndarray, iterations: int, strategy: str, notes: list):
     """(why the shared solve does not apply or None, its plan or None)."""
     why_not = None
     if iterations > 1:
@@ -271,7 +271,7 @@ def choose_path(flow_solver: FlowSolver, op, lams: np.ndarray, iterations: int, 
     if strategy == "separate":
         why_not = "strategy='separate' was asked for"
     elif why_not is None:
-        plan = plan_shared_solve(flow_solver, op, lams, notes)
+        plan = plan_shared_solve(flow_solver, operator, lams, notes)
         if isinstance(plan, str):
             why_not, plan = plan, None
     return why_not, plan

@@ -40,7 +40,7 @@ class SharedPlan:
     note: str = ""
 
 
-def plan_shared_solve(flow_solver: FlowSolver, op, lams: np.ndarray, notes: list):
+def plan_shared_solve(flow_solver: FlowSolver, operator, lams: np.ndarray, notes: list):
     """The shared interior system, or a string saying why there is none.
 
     Members whose |λ| would need far more CG iterations than flow()'s CG
@@ -55,13 +55,13 @@ def plan_shared_solve(flow_solver: FlowSolver, op, lams: np.ndarray, notes: list
     hard = np.zeros(lams.size, bool)
     interior_sys = None
     if nz.any():
-        interior_sys = flow_solver.systems.interior(op, float(absl.max()), 1, notes)
+        interior_sys = flow_solver.systems.interior(operator, float(absl.max()), 1, notes)
     if interior_sys is not None:
         free = interior_sys.free
         c1 = interior_sys.c[free] * float(absl.max())        # m_i / w_i
-        if not (np.all(c1 > 0) and np.all(np.isfinite(c1)) and np.all(op.deg[free] >= 0)):
+        if not (np.all(c1 > 0) and np.all(np.isfinite(c1)) and np.all(operator.deg[free] >= 0)):
             return "the interior system is indefinite (Blender's rows with negative cotangent degree; LU per λ)"
-        rho = float(np.max(op.deg[free] / c1))
+        rho = float(np.max(operator.deg[free] / c1))
         est = np.array([estimate_cg_iterations(1.0 + 2.0 * a * rho, flow_solver.rtol) for a in absl])
         hard = nz & (est > SHARED_CG_MAX_RATIO * maxiter)
         if hard.all() or (hard | ~nz).all():
@@ -77,7 +77,7 @@ def plan_shared_solve(flow_solver: FlowSolver, op, lams: np.ndarray, notes: list
         member_shift[easy] = sigmas.size - 1 - np.searchsorted(uniq, absl[easy])
     lam_seed = float(uniq[-1]) if uniq.size else 0.0
     if interior_sys is not None and lam_seed != float(absl.max()):
-        interior_sys = flow_solver.systems.interior(op, lam_seed, 1, notes)
+        interior_sys = flow_solver.systems.interior(operator, lam_seed, 1, notes)
     scale = np.ones(n)
     note = ""
     if interior_sys is not None:
@@ -88,19 +88,19 @@ def plan_shared_solve(flow_solver: FlowSolver, op, lams: np.ndarray, notes: list
     return SharedPlan(interior_sys, lam_seed, scale, sigmas, member_shift, hard, maxiter, note)
 
 
-def boundary_solve(flow_solver: FlowSolver, op, V: np.ndarray):
+def boundary_solve(flow_solver: FlowSolver, operator, V: np.ndarray):
     """Solve the boundary block (independent of λ): positions X and the system."""
-    boundary_sys = flow_solver.systems.boundary(op, flow_solver.lam_border)
+    boundary_sys = flow_solver.systems.boundary(operator, flow_solver.lam_border)
     return flow_solver.systems.solve_boundary(V, boundary_sys), boundary_sys
 
 
-def shared_solve(flow_solver: FlowSolver, op, plan: SharedPlan, lams: np.ndarray, ax: np.ndarray,
+def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.ndarray, ax: np.ndarray,
                  preserve_volume: bool, report: FamilyReport, tick) -> np.ndarray:
     """Every member that shares the seed's Krylov space, from one multi-shift CG (see ``family``)."""
     mesh = flow_solver.mesh
     V = mesh.vertices
     n, k = V.shape[0], lams.size
-    X, boundary_sys = boundary_solve(flow_solver, op, V)
+    X, boundary_sys = boundary_solve(flow_solver, operator, V)
     interior_sys = plan.interior_sys
     report.free_vertices = int((interior_sys.free.sum() if interior_sys is not None else 0)
                                + (boundary_sys.free.sum() if boundary_sys is not None else 0))

@@ -154,11 +154,11 @@ class FlowSolver:
                 or mesh.n_faces == 0:
             report.notes.append("nothing to do: input returned unchanged")
             return self._result(V0, report, t0)
-        op = self.operator()
-        report.locked_vertices = np.flatnonzero(op.locked)
+        operator = self.operator()
+        report.locked_vertices = np.flatnonzero(operator.locked)
         report.locked = int(report.locked_vertices.size)
-        report.degenerate_triangles = op.n_bad
-        report.boundary_vertices = int(op.boundary.sum())
+        report.degenerate_triangles = operator.n_bad
+        report.boundary_vertices = int(operator.boundary.sum())
         topo = mesh.topology
         nm = int(topo.nonmanifold_edge_mask.sum())
         if nm:
@@ -174,13 +174,13 @@ class FlowSolver:
         for it in range(int(iterations)):
             if it == 0 or update == "recompute":
                 if it > 0:
-                    op = self.operator(V)
+                    operator = self.operator(V)
                     # the report describes the operator of the last step taken
-                    report.locked_vertices = np.flatnonzero(op.locked)
+                    report.locked_vertices = np.flatnonzero(operator.locked)
                     report.locked = int(report.locked_vertices.size)
-                    report.degenerate_triangles = op.n_bad
-                interior_sys = self.systems.interior(op, lam, n_solves, report.notes)
-                boundary_sys = self.systems.boundary(op, lam_b)
+                    report.degenerate_triangles = operator.n_bad
+                interior_sys = self.systems.interior(operator, lam, n_solves, report.notes)
+                boundary_sys = self.systems.boundary(operator, lam_b)
                 if interior_sys is not None:
                     report.solver = interior_sys.solver.method
                 n_free_i = int(interior_sys.free.sum()) if interior_sys else 0
@@ -196,14 +196,14 @@ class FlowSolver:
             if it == 0 and update == "fixed" and iterations >= 2 and not preserve_volume and boundary_sys is None \
                     and interior_sys is not None and interior_sys.solver.method == "cg" \
                     and self.solver_method in ("auto", "chebyshev"):
-                V_all = fixed_steps(V, lam, int(iterations), interior_sys, ax, report, op.pattern, self.rtol)
+                V_all = fixed_steps(V, lam, int(iterations), interior_sys, ax, report, operator.pattern, self.rtol)
                 if V_all is not None:
                     V = V_all
                     report.steps = int(iterations)
                     if progress is not None:
                         progress(int(iterations), int(iterations))
                     break
-            V_new = self._step(V, lam, lam_b, interior_sys, boundary_sys, op.boundary, ax, report)
+            V_new = self._step(V, lam, lam_b, interior_sys, boundary_sys, operator.boundary, ax, report)
             if preserve_volume:
                 V_new = self.systems.rescale_volume(V, V_new, ax, center0, report)
             V = V_new

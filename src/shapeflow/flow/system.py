@@ -207,18 +207,18 @@ class SystemBuilder:
             return self.solver_method
         return choose_method(n_free, kappa, n_solves, self.rtol)
 
-    def interior(self, op: Operator, lam: float, n_solves: int, notes: list) -> LinearSystem | None:
+    def interior(self, operator: Operator, lam: float, n_solves: int, notes: list) -> LinearSystem | None:
         if lam == 0.0:
             return None
         w = self.w
-        free = ~op.boundary & ~op.locked & (w > 0) & (op.mass > 0) & (op.deg > 0)
-        indefinite = ~op.boundary & ~op.locked & (w > 0) & ((op.mass < 0) | (op.deg < 0))
+        free = ~operator.boundary & ~operator.locked & (w > 0) & (operator.mass > 0) & (operator.deg > 0)
+        indefinite = ~operator.boundary & ~operator.locked & (w > 0) & ((operator.mass < 0) | (operator.deg < 0))
         if indefinite.any():
             if self.blender:
                 free |= indefinite  # Blender solves these rows too; use LU below
             else:
                 notes.append(f"{int(indefinite.sum())} vertices with negative cotangent degree kept fixed")
-        c = row_scale(op.mass, abs(lam), w, free, self._coord_scale)
+        c = row_scale(operator.mass, abs(lam), w, free, self._coord_scale)
         tiny = free & ~np.isfinite(c)
         if tiny.any():
             notes.append(f"{int(tiny.sum())} vertices kept fixed: |λ|·weight is so small that their step "
@@ -227,41 +227,42 @@ class SystemBuilder:
         if not free.any():
             return None
         c[~free] = 0.0
-        pattern = op.pattern
+        pattern = operator.pattern
         p0, p1 = pattern.pairs[:, 0], pattern.pairs[:, 1]
         fast = accel.compiled("flow", pattern.n)
         if fast is not None:   # the same matrix in one compiled pass
             data, diag, mixed, ratio = fast.interior_data(pattern.indices.size, pattern.pos_diag, pattern.pos_upper,
-                                                          pattern.pos_lower, pattern.pairs, free, c, op.deg, op.pw)
+                                                          pattern.pos_lower, pattern.pairs, free, c, operator.deg,
+                                                          operator.pw)
             A = pattern.matrix_from_data(data)
             n_mixed = sum(mixed)
         else:
             both = free[p0] & free[p1]
-            diag = np.where(free, c + op.deg, 1.0)
-            A = pattern.matrix(diag, np.where(both, -op.pw, 0.0))
+            diag = np.where(free, c + operator.deg, 1.0)
+            A = pattern.matrix(diag, np.where(both, -operator.pw, 0.0))
             n_mixed = -1
-            ratio = float(np.max(np.abs(op.deg[free] / np.where(c[free] != 0, c[free], 1.0))))
+            ratio = float(np.max(np.abs(operator.deg[free] / np.where(c[free] != 0, c[free], 1.0))))
         # terms of free rows on non-free columns move to the right-hand side
         if n_mixed and fast is not None:
-            coupling = fast.interior_coupling(pattern.pairs, free, op.pw, mixed)
+            coupling = fast.interior_coupling(pattern.pairs, free, operator.pw, mixed)
         elif n_mixed:
             a = free[p0] & ~free[p1]
             b = free[p1] & ~free[p0]
             coupling = (np.concatenate([p0[a], p1[b]]), np.concatenate([p1[a], p0[b]]),
-                        np.concatenate([op.pw[a], op.pw[b]]))
+                        np.concatenate([operator.pw[a], operator.pw[b]]))
         else:
             coupling = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
         kappa = 1.0 + 2.0 * ratio
         method = "lu" if (self.blender and indefinite.any()) else self.method(int(free.sum()), kappa, n_solves)
         return LinearSystem(A, free, SPDSolver(A, method, rtol=self.rtol, diagonal=diag), coupling, c)
 
-    def boundary(self, op: Operator, lam_b: float) -> LinearSystem | None:
-        if lam_b == 0.0 or op.umbrella_pairs.size == 0:
+    def boundary(self, operator: Operator, lam_b: float) -> LinearSystem | None:
+        if lam_b == 0.0 or operator.umbrella_pairs.size == 0:
             return None
         w = self.w
-        free = op.boundary & ~op.locked & (w > 0) & (op.umbrella_degree > 0)
+        free = operator.boundary & ~operator.locked & (w > 0) & (operator.umbrella_degree > 0)
         k_b = 2.0 if self.blender else 1.0
-        c_all = row_scale(op.umbrella_degree, k_b * abs(lam_b), w, free, self._coord_scale)
+        c_all = row_scale(operator.umbrella_degree, k_b * abs(lam_b), w, free, self._coord_scale)
         free &= np.isfinite(c_all)
         if not free.any():
             return None
@@ -269,11 +270,12 @@ class SystemBuilder:
         local = np.full(self.mesh.n_vertices, -1)
         local[idx] = np.arange(idx.size)
         c = c_all[idx]
-        q0, q1 = op.umbrella_pairs[:, 0], op.umbrella_pairs[:, 1]
+        q0, q1 = operator.umbrella_pairs[:, 0], operator.umbrella_pairs[:, 1]
         both = free[q0] & free[q1]
         rows = np.concatenate([local[q0[both]], local[q1[both]], np.arange(idx.size)])
         cols = np.concatenate([local[q1[both]], local[q0[both]], np.arange(idx.size)])
-        vals = np.concatenate([-op.umbrella_weights[both], -op.umbrella_weights[both], c + op.umbrella_degree[idx]])
+        ue = operator.umbrella_weights     # e_ij
+        vals = np.concatenate([-ue[both], -ue[both], c + operator.umbrella_degree[idx]])
         A = sp.csr_matrix((vals, (rows, cols)), shape=(idx.size, idx.size))
         # neighbours that are not free: their current position enters the right-hand side,
         # except (Blender) a locked neighbour, whose term Blender leaves out of the row
@@ -281,9 +283,9 @@ class SystemBuilder:
         b = free[q1] & ~free[q0]
         r = np.concatenate([q0[a], q1[b]])
         s = np.concatenate([q1[a], q0[b]])
-        e = np.concatenate([op.umbrella_weights[a], op.umbrella_weights[b]])
+        e = np.concatenate([operator.umbrella_weights[a], operator.umbrella_weights[b]])
         if self.blender:
-            keep = ~op.locked[s]
+            keep = ~operator.locked[s]
             r, s, e = r[keep], s[keep], e[keep]
         method = "lu" if idx.size < 20000 else "cg"
         return LinearSystem(A, free, SPDSolver(A, method, rtol=self.rtol), (r, s, e), c, idx, local)
