@@ -10,7 +10,7 @@ Only numpy and scipy are imported eagerly; I/O, subdivision and the optional
 extras load on first use.
 """
 
-from .errors import MeshError, OptionalDependencyError, ParameterError, ShapeflowError
+from .errors import DataLossWarning, MeshError, OptionalDependencyError, ParameterError, ShapeflowError
 from .flow import FlowReport, FlowSolver, enhance, flow, smooth
 from .mesh import WEIGHT, Diagnostics, Mesh, Topology, concatenate, normalize_faces
 from .operators import (
@@ -45,7 +45,7 @@ def __getattr__(name):
 
 __all__ = [
     "Mesh", "Topology", "Diagnostics", "normalize_faces", "concatenate", "WEIGHT",
-    "MeshError", "ParameterError", "ShapeflowError", "OptionalDependencyError",
+    "MeshError", "ParameterError", "ShapeflowError", "OptionalDependencyError", "DataLossWarning",
     "cotan_weights", "CotanWeights", "laplacian", "mean_curvature", "mean_curvature_normal", "vertex_areas",
     "flow", "smooth", "enhance", "FlowSolver", "FlowReport",
     *_LAZY,

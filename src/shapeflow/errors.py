@@ -37,3 +37,11 @@ class OptionalDependencyError(ImportError):
             f"pip install 'shapeflow[{extra}]'"
         )
         self.extra = extra
+
+
+class DataLossWarning(UserWarning):
+    """Something a file or a mesh carried cannot be kept by this format or operation.
+
+    The message names what is lost (``'l' lines (polylines)``, ``corner attribute 'uv'``...);
+    the command line prints it as one ``warning:`` line.
+    """

@@ -83,7 +83,7 @@ def test_info_reports_attributes_of_a_ply(capsys, tmp_path):
     sio.save(tmp_path / "w.ply", m)
     rc, out, _ = _info(capsys, str(tmp_path / "w.ply"))
     assert rc == 0
-    assert _field(out, "attributes") == "weight"
+    assert _field(out, "attributes") == "weight (per vertex)"
 
 
 def _assert_one_line_error(rc, out, err, *fragments):

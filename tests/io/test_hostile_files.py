@@ -8,6 +8,7 @@ import subprocess
 import sys
 import textwrap
 
+import numpy as np
 import pytest
 
 import shapeflow as sf
@@ -85,7 +86,12 @@ def test_obj_other_tags_still_read(tmp_path):
     p = tmp_path / "m.obj"
     p.write_bytes(b"mtllib a.mtl\no thing\ng grp\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nusemtl m-1.x\n"
                   b"s off\nf 1/1/1 2/1/1 3/1/1\nl 1 2\n")
-    assert sio.load(p) == sf.Mesh(TRI_V, [[0, 1, 2]])
+    with pytest.warns(sf.DataLossWarning, match="1 'l' line"):
+        m = sio.load(p)
+    assert np.array_equal(m.vertices, TRI_V) and m.faces_as_lists() == [[0, 1, 2]]
+    assert m.corner_attributes["uv"].index.tolist() == [0, 0, 0]
+    assert m.face_attributes["material"].values().tolist() == ["m-1.x"]
+    assert m.metadata["obj"]["mtllib"] == ["a.mtl"]
 
 
 ASCII_HEAD = "ply\nformat ascii 1.0\n{}end_header\n"

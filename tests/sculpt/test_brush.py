@@ -339,7 +339,8 @@ def test_compiled_cache_update_matches_numpy():
             b.dab(V[60])
             b.undo()                   # restores positions: triangles flip back
             b.dab(V[45] + 0.3)
-            runs.append((b.vertices.copy(), _brush_pw(b), b.locked.copy(), b._tri_degenerate.copy(), b._lock_count.copy()))
+            runs.append((b.vertices.copy(), _brush_pw(b), b.locked.copy(), b._tri_degenerate.copy(),
+                         b._lock_count.copy()))
     (v0, pw0, l0, tb0, vl0), (v1, pw1, l1, tb1, vl1) = runs
     assert l0.any() and np.array_equal(l0, l1) and np.array_equal(tb0, tb1) and np.array_equal(vl0, vl1)
     assert np.abs(pw0 - pw1).max() <= 1e-13 * np.abs(pw0).max()

@@ -14,9 +14,10 @@ import os
 import signal
 import sys
 import threading
+import warnings
 
 from .. import accel
-from ..errors import OptionalDependencyError, ShapeflowError
+from ..errors import DataLossWarning, OptionalDependencyError, ShapeflowError
 
 #: subcommand modules, in the order ``--help`` lists them
 # (flow.py registers flow, enhance and smooth)
@@ -93,7 +94,12 @@ def main(argv: list[str] | None = None) -> int:
         # the command is its own application: it takes the measured small-page win (accel docs) unless
         # SHAPEFLOW_SMALL_PAGES=0, for this call only (an embedding program's setting is back afterwards)
         pages = os.environ.get("SHAPEFLOW_SMALL_PAGES", "1").strip().lower() in ("1", "true", "yes", "on")
-        with _termination_unwinds(), accel.use(small_pages=pages):
+        with _termination_unwinds(), accel.use(small_pages=pages), warnings.catch_warnings():
+            def one_line(message, category, *rest, **kw):
+                print(f"shapeflow {args.command}: warning: {message}", file=sys.stderr)
+
+            warnings.simplefilter("always", DataLossWarning)
+            warnings.showwarning = one_line       # restored when the block ends
             return int(args.func(args) or 0)
     except Terminated as exc:
         print(f"shapeflow {args.command}: terminated by {signal.Signals(exc.signum).name}; "

@@ -5,15 +5,25 @@ from __future__ import annotations
 import sys
 
 
-def load_mesh_arg(arg: str):
-    """Load a mesh given on the command line: a path or ``example:NAME``."""
+def load_mesh_arg(arg: str, *, faces: bool = True):
+    """Load a mesh given on the command line: a path or ``example:NAME``.
+
+    A mesh without faces (a point cloud) is refused unless ``faces=False``: no command
+    that smooths, subdivides or sculpts has anything to work on."""
     if arg.startswith("example:"):
         from ..examples import load_example
 
-        return load_example(arg.split(":", 1)[1])
-    from ..io import load
+        mesh = load_example(arg.split(":", 1)[1])
+    else:
+        from ..io import load
 
-    return load(arg)
+        mesh = load(arg)
+    if faces and mesh.n_faces == 0:
+        from ..errors import MeshError
+
+        raise MeshError(f"{arg}: no faces ({mesh.n_vertices} vertices only: a point cloud?); "
+                        "shapeflow works on polygon meshes")
+    return mesh
 
 
 def eprint(*a, **kw) -> None:

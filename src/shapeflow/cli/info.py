@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
+from ..errors import DataLossWarning
 from .common import load_mesh_arg
 
 
@@ -16,7 +19,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    mesh = load_mesh_arg(args.mesh)
+    with warnings.catch_warnings():     # what the file loses is reported in the description itself
+        warnings.simplefilter("ignore", DataLossWarning)
+        mesh = load_mesh_arg(args.mesh, faces=False)
     print(describe(mesh, name=args.mesh))
     return 0
 
@@ -30,6 +35,9 @@ def describe(mesh, name: str = "mesh") -> str:
     parts = [f"{c} {label.get(s, f'{s}-gons')}" for s, c in by.items()]
     lines.append(f"  faces           {mesh.n_faces} ({', '.join(parts) if parts else 'none'})")
     lines.append(f"  edges           {t.n_edges}")
+    if mesh.n_faces == 0:
+        lines.append("  warning: no faces: a point cloud, not a surface (nothing to smooth or subdivide)")
+        return "\n".join(lines)
     ncomp = t.vertex_components[0] - int(np.count_nonzero(t.vertex_corner_count == 0))
     lines.append(f"  components      {ncomp}")
     lines.append(f"  euler char.     {t.euler_characteristic}")
@@ -46,9 +54,21 @@ def describe(mesh, name: str = "mesh") -> str:
     lo, hi = mesh.bounding_box
     fmt = lambda a: "(" + ", ".join(f"{x:.6g}" for x in a) + ")"  # noqa: E731
     lines.append(f"  bounding box    {fmt(lo)} .. {fmt(hi)}, diagonal {mesh.diagonal:.6g}")
+    kinds = []
     if mesh.attributes:
-        lines.append(f"  attributes      {', '.join(mesh.attributes)}")
-    warnings = d.warnings()
-    for w in warnings:
+        kinds.append(f"{', '.join(mesh.attributes)} (per vertex)")
+    if mesh.corner_attributes:
+        kinds.append(f"{', '.join(mesh.corner_attributes)} (per corner)")
+    if mesh.face_attributes:
+        labels = [f"{k} ({len(v.names)} names)" if hasattr(v, "names") else k for k, v in mesh.face_attributes.items()]
+        kinds.append(f"{', '.join(labels)} (per face)")
+    for i, k in enumerate(kinds):
+        lines.append(f"  {'attributes' if i == 0 else '':16s}{k}")
+    for fmt_name, meta in mesh.metadata.items():
+        dropped = meta.get("dropped") if isinstance(meta, dict) else None
+        if dropped:
+            what = ", ".join(f"{n} '{tag}'" for tag, n in dropped.items())
+            lines.append(f"  warning: not kept from the {fmt_name.upper()} file: {what} lines")
+    for w in d.warnings():
         lines.append(f"  warning: {w}")
     return "\n".join(lines)

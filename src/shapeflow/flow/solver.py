@@ -10,7 +10,7 @@ import numpy as np
 from .. import accel, params
 from ..errors import ParameterError
 from ..geometry.measures import pow2_exponent
-from ..geometry.normals import NORMAL_ATTRIBUTES, refresh_normals
+from ..geometry.normals import has_normals, refresh_normals
 from ..linalg.spd import DEFAULT_RTOL
 from ..mesh import Mesh
 from ..operators.pattern import check_scheme
@@ -230,9 +230,9 @@ class FlowSolver:
             out = mesh.with_vertices(mesh.vertices)
         else:   # V is a new array of this run: handed over without a copy (validated if not finite)
             out = mesh.with_own_vertices(V)
-        if moved and any(k in out.attributes for k in NORMAL_ATTRIBUTES):
+        if moved and has_normals(out):
             out = refresh_normals(out)
-            report.notes.append("vertex normals (nx, ny, nz) recomputed from the new surface")
+            report.notes.append("normals recomputed from the new surface")
         report.seconds = time.perf_counter() - t0
         out.report = report
         return out

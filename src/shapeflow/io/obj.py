@@ -1,17 +1,29 @@
-"""Wavefront OBJ."""
+"""Wavefront OBJ, with everything a production asset carries.
+
+Kept on reading and written back: positions (and ``v x y z r g b`` colours as the
+vertex attribute ``"color"``), texture coordinates ``vt`` and normals ``vn`` as
+the corner attributes ``"uv"`` and ``"normal"`` (tables and per-corner indices, so
+their sharing and seams come back unchanged), ``usemtl``, ``g``, ``o`` and ``s``
+as the face attributes ``"material"``, ``"group"``, ``"object"`` and ``"smooth"``,
+and ``mtllib`` lines and comments as metadata.  Lines that describe no polygon
+(``l``, ``p``, curves and surfaces) cannot be kept: they are counted in
+``mesh.metadata["obj"]["dropped"]`` and named in a :class:`~shapeflow.errors.DataLossWarning`.
+"""
 
 from __future__ import annotations
 
+import re
+import warnings
 from typing import BinaryIO
 
 import numpy as np
 
-from ..errors import MeshError
+from ..errors import DataLossWarning, MeshError
 from ..mesh import Mesh
-from .text import Text, build_mesh, ranges, text_data, write_faces_text, write_rows
+from ..mesh.attributes import Indexed, Labels
+from .text import Text, build_mesh, ranges, text_data, write_rows
 
-__all__ = ["read_obj", "write_obj"]
-
+__all__ = ["read_obj", "write_obj", "FACE_TAGS"]
 
 TAG_START = np.zeros(256, dtype=bool)
 TAG_START[np.frombuffer(b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_", np.uint8)] = True
@@ -20,36 +32,81 @@ TAG_CHAR[np.frombuffer(b"0123456789.-", np.uint8)] = True
 NUMBER_START = np.zeros(256, dtype=bool)
 NUMBER_START[np.frombuffer(b"0123456789.-+", np.uint8)] = True
 
+#: OBJ state tags kept per face, and the face attribute each becomes
+FACE_TAGS = {b"usemtl": "material", b"g": "group", b"o": "object", b"s": "smooth"}
+_COMMENT = re.compile(rb"^[ \t]*#[ \t]?([^\r\n]*)", re.MULTILINE)
+_OWN_HEADER = "shapeflow:"
+
+
+def _tag(a: np.ndarray, s: np.ndarray, tlen: np.ndarray, word: bytes) -> np.ndarray:
+    """Records whose first token is ``word``."""
+    hit = tlen == len(word)
+    for j, ch in enumerate(word):
+        hit &= a[s + j] == ch
+    return hit
+
+
+def _texts(txt: Text, recs: np.ndarray) -> list[str]:
+    """What follows the tag on each record (one string per record, '' for none)."""
+    rf, rc = txt.rec_first[recs], txt.rec_count[recs]
+    has = rc > 1
+    lo = np.where(has, txt.start[np.where(has, rf + 1, rf)], 0)
+    hi = np.where(has, txt.end[rf + rc - 1], 0)
+    a = np.frombuffer(txt.data + b"\n", dtype=np.uint8)
+    idx = ranges(lo, hi - lo + 1)
+    idx[np.cumsum(hi - lo + 1) - 1] = a.size - 1           # a newline after each
+    joined = a[idx].tobytes().decode("utf-8", errors="replace")
+    return joined.split("\n")[:-1]
+
 
 def read_obj(data: bytes, name: str) -> Mesh:
     data = text_data(data, name, "OBJ")
+    comments = [c.decode("utf-8", "replace").rstrip() for c in _COMMENT.findall(data)]
     txt = Text(data, name, comments=True, continuations=True)
     if txt.n_records == 0:
         raise MeshError(f"{name}: no vertices (the file has only comments or blank lines)")
     rf = txt.rec_first
-    a = np.frombuffer(txt.data + b"  ", dtype=np.uint8)
+    a = np.frombuffer(txt.data + b"        ", dtype=np.uint8)
     s = txt.start[rf]
     tlen = txt.end[rf] - s
-    c0, c1 = a[s], a[s + 1]
-    is_v = (tlen == 1) & (c0 == ord("v"))
-    is_f = ((tlen == 1) & (c0 == ord("f"))) | ((tlen == 2) & (c0 == ord("f")) & (c1 == ord("o")))
-    common = (tlen == 2) & (c0 == ord("v")) & ((c1 == ord("t")) | (c1 == ord("n")))
-    other = np.flatnonzero(~(is_v | is_f | common))   # other tags (g, o, s, usemtl...): skipped if tag-like
-    if other.size:
-        _check_tags(txt, a, other, s[other], tlen[other])
+    is_v, is_vt, is_vn = _tag(a, s, tlen, b"v"), _tag(a, s, tlen, b"vt"), _tag(a, s, tlen, b"vn")
+    is_f = _tag(a, s, tlen, b"f") | _tag(a, s, tlen, b"fo")
+    is_state = {tag: _tag(a, s, tlen, tag) for tag in (*FACE_TAGS, b"mtllib")}
+    known = is_v | is_vt | is_vn | is_f | np.logical_or.reduce(list(is_state.values()))
+    other = np.flatnonzero(~known)
+    dropped = _check_tags(txt, a, other, s[other], tlen[other]) if other.size else {}
     vrec = np.flatnonzero(is_v)
-    vertices = _vertices(txt, vrec, name)
+    vertices, attributes = _vertices(txt, vrec, name)
     frec = np.flatnonzero(is_f)
     ffirst = rf[frec]
-    sizes, idx = _faces(txt, a, frec, vrec)
+    sizes, idx, vt_idx, vn_idx = _faces(txt, a, frec, vrec, np.flatnonzero(is_vt), np.flatnonzero(is_vn))
+    corner = {}
+    if is_vt.any():
+        corner["uv"] = Indexed(_table(txt, np.flatnonzero(is_vt), (1, 2, 3), "texture coordinate"), vt_idx)
+    if is_vn.any():
+        corner["normal"] = Indexed(_table(txt, np.flatnonzero(is_vn), (3,), "normal"), vn_idx)
+    face = {attr: _labels(txt, np.flatnonzero(is_state[tag]), frec)
+            for tag, attr in FACE_TAGS.items() if is_state[tag].any()}
+    meta = {"comments": [c for c in comments if not c.startswith(_OWN_HEADER)],
+            "mtllib": _texts(txt, np.flatnonzero(is_state[b"mtllib"])), "dropped": dropped}
+    if dropped:
+        what = ", ".join(f"{n} '{t}' line{'s' if n > 1 else ''}" for t, n in dropped.items())
+        warnings.warn(DataLossWarning(f"{name}: not kept (they describe no polygon): {what}"), stacklevel=3)
     vfirst = rf[vrec]
-    return build_mesh(name, vertices, sizes, idx,
+    mesh = build_mesh(name, vertices, sizes, idx, attributes=attributes,
                       where_vertex=lambda i: f"line {txt.lineno(vfirst[i])}",
                       where_face=lambda f: f"line {txt.lineno(ffirst[f])}")
+    if corner or face or any(meta.values()):
+        try:
+            mesh = Mesh(mesh.vertices, None, attributes=mesh.attributes, corner_attributes=corner,
+                        face_attributes=face, metadata={"obj": meta}, _topology=mesh.topology)
+        except MeshError as exc:
+            raise MeshError(f"{name}: {exc}") from None
+    return mesh
 
 
-def _check_tags(txt: Text, a: np.ndarray, other: np.ndarray, so: np.ndarray, lo: np.ndarray) -> None:
-    """Lines with other tags are skipped, if the tag looks like one (else: the line is an error)."""
+def _check_tags(txt: Text, a: np.ndarray, other: np.ndarray, so: np.ndarray, lo: np.ndarray) -> dict:
+    """Lines with other tags are counted (and not kept) if the tag looks like one, else an error."""
     rf = txt.rec_first
     # a tag must be a letter or '_' followed by letters, digits, '_', '.', '-'
     chars = a[ranges(so, lo)]
@@ -66,10 +123,15 @@ def _check_tags(txt: Text, a: np.ndarray, other: np.ndarray, so: np.ndarray, lo:
         tok = txt.token(rf[r])
         hint = " (a space missing after the tag?)" if glued[bad[0]] else ""
         raise txt.error(rf[r], f"unrecognised line starting with {tok}{hint}")
+    keys = a[ranges(so, lo)].tobytes().decode("ascii")
+    cuts = np.cumsum(lo)
+    tags = [keys[i:j] for i, j in zip(np.concatenate([[0], cuts[:-1]]).tolist(), cuts.tolist())]
+    names, counts = np.unique(np.array(tags, dtype=object), return_counts=True)
+    return {str(t): int(c) for t, c in zip(names, counts)}
 
 
-def _vertices(txt: Text, vrec: np.ndarray, name: str) -> np.ndarray:
-    """Positions of the 'v' records: x y z [w] or x y z r g b [a]."""
+def _vertices(txt: Text, vrec: np.ndarray, name: str):
+    """Positions of the 'v' records (x y z [w] or x y z r g b [a]) and their colours."""
     n = vrec.size
     if n == 0:
         raise MeshError(f"{name}: no vertices (no 'v' lines)")
@@ -81,12 +143,78 @@ def _vertices(txt: Text, vrec: np.ndarray, name: str) -> np.ndarray:
             i = int(bad[0])
             raise txt.error(vfirst[i], f"vertex line has {int(nval[i])} values; expected x y z [w] or x y z r g b")
     vtok = (vfirst[:, None] + np.arange(1, 4)).reshape(-1)  # x y z, after the tag
-    return txt.parse(vtok, np.float64, "vertex coordinate").reshape(n, 3)
+    vertices = txt.parse(vtok, np.float64, "vertex coordinate").reshape(n, 3)
+    attributes = {}
+    if (nval >= 6).all():
+        ctok = (vfirst[:, None] + np.arange(4, 7)).reshape(-1)
+        attributes["color"] = txt.parse(ctok, np.float64, "vertex colour").reshape(n, 3)
+    elif (nval >= 6).any():
+        warnings.warn(DataLossWarning(f"{name}: only some 'v' lines have colours; colours are not kept"),
+                      stacklevel=4)
+    return vertices, attributes
 
 
-def _faces(txt: Text, a: np.ndarray, frec: np.ndarray, vrec: np.ndarray):
-    """Sizes and 0-based vertex indices of the 'f' records: a a/b a//c a/b/c, 1-based or negative
-    (relative to the vertices so far)."""
+def _table(txt: Text, recs: np.ndarray, allowed: tuple, what: str) -> np.ndarray:
+    """The values of 'vt' or 'vn' records as a (t, k) table (k = the most values a record has)."""
+    first = txt.rec_first[recs]
+    nval = txt.rec_count[recs] - 1
+    bad = np.flatnonzero(~np.isin(nval, allowed))
+    if bad.size:
+        i = int(bad[0])
+        raise txt.error(first[i], f"{what} line has {int(nval[i])} values; expected {' or '.join(map(str, allowed))}")
+    k = int(nval.max())
+    out = np.zeros((recs.size, k))
+    vals = txt.parse(ranges(first + 1, nval), np.float64, what)
+    rows = np.repeat(np.arange(recs.size), nval)
+    cols = np.arange(vals.size) - np.repeat(np.cumsum(nval) - nval, nval)
+    out[rows, cols] = vals
+    bad = np.flatnonzero(~np.isfinite(out).all(axis=1))
+    if bad.size:
+        raise txt.error(first[int(bad[0])], f"{what} is not finite")
+    return out
+
+
+def _labels(txt: Text, recs: np.ndarray, frec: np.ndarray) -> Labels:
+    """The value of a state tag in force at each face line (the last such line before it)."""
+    texts = np.array(_texts(txt, recs) + [""], dtype=object)
+    which = np.searchsorted(recs, frec) - 1                # -1: no such line yet
+    return Labels.from_values(texts[np.where(which >= 0, which, recs.size)])
+
+
+def _slashes(txt: Text, a: np.ndarray, ftok: np.ndarray):
+    """Byte positions of the first and second '/' in each corner token (its end when missing)."""
+    ts, te = txt.start[ftok], txt.end[ftok]
+    slashes = np.append(np.flatnonzero(a[:-8] == ord("/")), a.size)
+    j = np.searchsorted(slashes, ts)
+    s1 = np.minimum(slashes[j], te)
+    s2 = np.minimum(slashes[np.minimum(j + 1, slashes.size - 1)], te)
+    s2 = np.where(s1 < te, s2, te)
+    return ts, te, s1, s2
+
+
+def _corner_index(txt: Text, ftok, lo, hi, count_before, n_table, what: str):
+    """1-based (or negative, relative) indices in byte ranges [lo, hi) -> 0-based; -1 where empty."""
+    out = np.full(ftok.size, -1, np.int64)
+    has = hi > lo
+    if not has.any():
+        return out
+    raw = txt.parse(ftok[has], np.int64, what, ends=hi[has], starts=lo[has])
+    zero = np.flatnonzero(raw == 0)
+    if zero.size:
+        raise txt.error(ftok[has][int(zero[0])], f"{what} 0 (OBJ indices start at 1)")
+    val = np.where(raw < 0, count_before[has] + raw, raw - 1)
+    bad = np.flatnonzero((val < 0) | (val >= n_table))
+    if bad.size:
+        c = int(bad[0])
+        raise txt.error(ftok[has][c], f"{what} {int(raw[c])} out of range: the file has {n_table} before this line"
+                        if raw[c] < 0 else f"{what} {int(raw[c])} out of range: the file has {n_table}")
+    out[has] = val
+    return out
+
+
+def _faces(txt: Text, a: np.ndarray, frec: np.ndarray, vrec: np.ndarray, vtrec: np.ndarray, vnrec: np.ndarray):
+    """Sizes, 0-based vertex indices and the corners' texture-coordinate and normal indices (-1: none)
+    of the 'f' records: a a/b a//c a/b/c, 1-based or negative (relative to the lines so far)."""
     n = vrec.size
     ffirst = txt.rec_first[frec]
     sizes = txt.rec_count[frec] - 1
@@ -95,18 +223,22 @@ def _faces(txt: Text, a: np.ndarray, frec: np.ndarray, vrec: np.ndarray):
         i = int(small[0])
         raise txt.error(ffirst[i], f"face has {int(sizes[i])} corners; a face needs at least 3")
     ftok = ranges(ffirst + 1, sizes)
-    ends = None
-    if b"/" in txt.data and ftok.size:
-        slashes = np.flatnonzero(a[:-2] == ord("/"))
-        ts, te = txt.start[ftok], txt.end[ftok]
-        j = np.searchsorted(slashes, ts)
-        first_slash = np.append(slashes, a.size)[j]
-        ends = np.minimum(te, first_slash)
-        empty = np.flatnonzero(ends == ts)
+    none = np.full(ftok.size, -1, np.int64)
+    if b"/" not in txt.data or not ftok.size:
+        raw = txt.parse(ftok, np.int64, "vertex index")
+        vt_idx = vn_idx = none
+    else:
+        ts, te, s1, s2 = _slashes(txt, a, ftok)
+        empty = np.flatnonzero(s1 == ts)
         if empty.size:
             t = ftok[int(empty[0])]
             raise txt.error(t, f"face corner {txt.token(t)} has no vertex index")
-    raw = txt.parse(ftok, np.int64, "vertex index", ends=ends)
+        raw = txt.parse(ftok, np.int64, "vertex index", ends=s1)
+        before = np.repeat(np.arange(frec.size), sizes)
+        vt_idx = _corner_index(txt, ftok, np.minimum(s1 + 1, te), s2, np.searchsorted(vtrec, frec)[before],
+                               vtrec.size, "texture coordinate index")
+        vn_idx = _corner_index(txt, ftok, np.minimum(s2 + 1, te), te, np.searchsorted(vnrec, frec)[before],
+                               vnrec.size, "normal index")
     zero = np.flatnonzero(raw == 0)
     if zero.size:
         raise txt.error(ftok[int(zero[0])], "vertex index 0 (OBJ indices start at 1)")
@@ -124,10 +256,74 @@ def _faces(txt: Text, a: np.ndarray, frec: np.ndarray, vrec: np.ndarray):
     if bad.size:
         c = int(bad[0])
         raise txt.error(ftok[c], f"vertex index {int(raw[c])} out of range: the file has {n} vertices")
-    return sizes, idx
+    return sizes, idx, vt_idx, vn_idx
+
+
+# --------------------------------------------------------------------------
+# writing
+# --------------------------------------------------------------------------
+
+def _state_lines(mesh: Mesh) -> dict[int, str]:
+    """The state lines (o, g, s, usemtl) to write before each face where one of them changes."""
+    out: dict[int, list] = {}
+    for tag in ("o", "g", "s", "usemtl"):
+        lab = mesh.face_attributes.get(FACE_TAGS[tag.encode()])
+        if not isinstance(lab, Labels) or mesh.n_faces == 0:
+            continue
+        c = lab.codes
+        change = np.flatnonzero(np.concatenate([[c[0] >= 0], c[1:] != c[:-1]]))
+        names = lab.values()
+        for q in change.tolist():     # one line per change of state (runs of faces, not faces)
+            out.setdefault(q, []).append(f"{tag} {names[q]}".rstrip() + "\n")
+    return {q: "".join(v).replace("%", "%%") for q, v in out.items()}
 
 
 def write_obj(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None) -> None:
-    f.write(f"# shapeflow: {mesh.n_vertices} vertices, {mesh.n_faces} faces\n".encode())
-    write_rows(f, "v %r %r %r\n", mesh.vertices)
-    write_faces_text(f, mesh, "f", 1, with_size=False)
+    meta = mesh.metadata.get("obj", {})
+    head = [f"# {_OWN_HEADER} {mesh.n_vertices} vertices, {mesh.n_faces} faces"]
+    head += [f"# {c}" for c in meta.get("comments", [])]
+    head += [f"mtllib {m}" for m in meta.get("mtllib", [])]
+    f.write(("\n".join(head) + "\n").encode("utf-8"))
+    color = mesh.attributes.get("color")
+    if color is not None and color.ndim == 2 and color.shape[1] == 3:
+        write_rows(f, "v %r %r %r %r %r %r\n", np.hstack([mesh.vertices, np.asarray(color, np.float64)]))
+    else:
+        write_rows(f, "v %r %r %r\n", mesh.vertices)
+    uv, nrm = mesh.corner_attributes.get("uv"), mesh.corner_attributes.get("normal")
+    uv, nrm = (_as_indexed(x) for x in (uv, nrm))
+    if uv is not None:
+        k = uv.values.shape[1]
+        write_rows(f, "vt" + " %r" * k + "\n", np.asarray(uv.values, np.float64))
+    if nrm is not None:
+        write_rows(f, "vn %r %r %r\n", np.asarray(nrm.values, np.float64))
+    _write_faces(f, mesh, uv, nrm, _state_lines(mesh))
+
+
+def _as_indexed(attr):
+    if attr is None or isinstance(attr, Indexed):
+        return attr
+    a = np.asarray(attr, np.float64)
+    return Indexed(a.reshape(a.shape[0], -1), np.arange(a.shape[0]))
+
+
+def _write_faces(f: BinaryIO, mesh: Mesh, uv, nrm, states: dict, chunk: int = 65536) -> None:
+    """Face lines: each corner as v, v/t, v//n or v/t/n, with the state lines in front of their face."""
+    sizes, offsets, indices = mesh.face_sizes, mesh.face_offsets, mesh.face_indices
+    c = indices.size
+    ti = uv.index if uv is not None else np.full(c, -1)
+    ni = nrm.index if nrm is not None else np.full(c, -1)
+    # a face writes texture / normal indices only when every corner has one
+    face_of = mesh.topology.corner_face
+    has_t = np.logical_and.reduceat(ti >= 0, offsets[:-1]) if c else np.zeros(0, bool)
+    has_n = np.logical_and.reduceat(ni >= 0, offsets[:-1]) if c else np.zeros(0, bool)
+    cols = np.stack([indices + 1, ti + 1, ni + 1], axis=1)
+    use = np.stack([np.ones(c, bool), has_t[face_of], has_n[face_of]], axis=1)
+    pattern = {(False, False): " %d", (True, False): " %d/%d", (False, True): " %d//%d", (True, True): " %d/%d/%d"}
+    for i in range(0, sizes.size, chunk):
+        j = min(i + chunk, sizes.size)
+        fmt = "".join([states.get(q, "") + "f" + pattern[(t, nn)] * k + "\n"
+                       for q, k, t, nn in zip(range(i, j), sizes[i:j].tolist(), has_t[i:j].tolist(),
+                                              has_n[i:j].tolist())])
+        lo, hi = int(offsets[i]), int(offsets[j])
+        vals = cols[lo:hi][use[lo:hi]]
+        f.write((fmt % tuple(vals.tolist())).encode("utf-8"))

@@ -109,19 +109,20 @@ class Text:
     def error_at_end(self, msg: str) -> MeshError:
         return MeshError(f"{self.name}: line {self.last_lineno()}: {msg}")
 
-    def parse(self, toks: np.ndarray, dtype, what: str, ends: np.ndarray | None = None) -> np.ndarray:
+    def parse(self, toks: np.ndarray, dtype, what: str, ends: np.ndarray | None = None,
+              starts: np.ndarray | None = None) -> np.ndarray:
         """Convert tokens ``toks`` (increasing indices) to numbers, in bulk.
 
-        ``ends`` overrides the tokens' end bytes (to read a prefix of each).
+        ``starts``/``ends`` override the tokens' first and end bytes (to read a part of each).
         """
         dtype = np.dtype(dtype)
         toks = np.asarray(toks, dtype=np.int64)
         n = toks.size
         if n == 0:
             return np.zeros(0, dtype=dtype)
-        s = self.start[toks]
+        s = self.start[toks] if starts is None else starts
         e = self.end[toks] if ends is None else ends
-        if ends is None and int(toks[-1] - toks[0]) == n - 1:  # a contiguous run of tokens
+        if ends is None and starts is None and int(toks[-1] - toks[0]) == n - 1:  # a contiguous run of tokens
             buf = self.data[int(s[0]):int(e[-1])]
         else:
             if self._padded is None:
@@ -132,15 +133,16 @@ class Text:
             buf = self._padded[idx].tobytes()
         out = fromstring(buf, dtype)
         if out is None or out.size != n:
-            self._raise_bad_number(toks, ends, dtype, what)
+            self._raise_bad_number(toks, ends, dtype, what, starts)
         return out
 
-    def _raise_bad_number(self, toks, ends, dtype, what):
+    def _raise_bad_number(self, toks, ends, dtype, what, starts=None):
         pattern = NUMBER_RE["f" if dtype.kind == "f" else "i"]
         data = self.data
-        for j, t in enumerate(toks.tolist()):
+        for j, t in enumerate(toks.tolist()):   # only on the way to an error: find the first bad token
+            b = self.start[t] if starts is None else starts[j]
             e = self.end[t] if ends is None else ends[j]
-            if not pattern.fullmatch(data, int(self.start[t]), int(e)):
+            if not pattern.fullmatch(data, int(b), int(e)):
                 raise self.error(t, f"{self.token(t, e)} is not a valid {what}")
         raise self.error(toks[0], f"cannot read the {what}s starting here")  # pragma: no cover
 

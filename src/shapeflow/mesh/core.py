@@ -13,6 +13,7 @@ vectorised, cached, and shared by every mesh made with :meth:`Mesh.with_vertices
 
 from __future__ import annotations
 
+from types import MappingProxyType
 from typing import Iterable, Mapping
 
 import numpy as np
@@ -20,6 +21,7 @@ import numpy as np
 from .. import accel
 from ..errors import MeshError
 from ..types import ArrayLike, Faces
+from .attributes import as_corner_attribute, as_face_attribute
 from .topology import Diagnostics, Topology, duplicate_faces, nonmanifold_vertices
 from .validate import WEIGHT, as_attribute, as_index_array, as_vertices, normalize_faces, validate_csr
 
@@ -41,6 +43,13 @@ class Mesh:
     attributes : mapping of name -> array with n rows, optional
         Other per-vertex attributes: integer and float32 arrays keep their type, anything else
         becomes float64.
+    corner_attributes : mapping of name -> (c, ...) array or :class:`~shapeflow.mesh.attributes.Indexed`, optional
+        One value per face corner (``face_indices`` order): texture coordinates (``"uv"``), split
+        normals (``"normal"``).
+    face_attributes : mapping of name -> (m, ...) array or :class:`~shapeflow.mesh.attributes.Labels`, optional
+        One value per face: numbers, or names (``"material"``, ``"group"``, ``"object"``, ``"smooth"``).
+    metadata : mapping, optional
+        File-level data kept for writing back (``mtllib`` lines, comments, PLY ``obj_info``...).
 
     Raises
     ------
@@ -58,11 +67,12 @@ class Mesh:
     [4, 3]
     """
 
-    __slots__ = ("_vertices", "_topology", "_attributes", "__dict__")
+    __slots__ = ("_vertices", "_topology", "_attributes", "_corner", "_face", "_meta", "__dict__")
 
     @accel.heavy
     def __init__(self, vertices: ArrayLike, faces: Faces, *, weights: ArrayLike | None = None,
-                 attributes: Mapping | None = None,
+                 attributes: Mapping | None = None, corner_attributes: Mapping | None = None,
+                 face_attributes: Mapping | None = None, metadata: Mapping | None = None,
                  _csr: tuple[np.ndarray, np.ndarray] | None = None,
                  _topology: Topology | None = None):
         v = as_vertices(vertices)
@@ -90,6 +100,11 @@ class Mesh:
         if weights is not None:
             attrs[WEIGHT] = as_attribute(WEIGHT, weights, n)
         self._attributes = attrs
+        t = self._topology
+        self._corner = {str(k): as_corner_attribute(str(k), v, t.n_corners)
+                        for k, v in (corner_attributes or {}).items()}
+        self._face = {str(k): as_face_attribute(str(k), v, t.n_faces) for k, v in (face_attributes or {}).items()}
+        self._meta = dict(metadata or {})
 
     # --- construction ----------------------------------------------------
     @classmethod
@@ -118,7 +133,13 @@ class Mesh:
         attrs = dict(self._attributes) if keep_attributes else {}
         if attributes:
             attrs.update(attributes)
-        return Mesh(vertices, None, attributes=attrs, _topology=self._topology)
+        return Mesh(vertices, None, attributes=attrs, _topology=self._topology, **self._carried(keep_attributes))
+
+    def _carried(self, keep: bool = True) -> dict:
+        """The corner and face attributes and metadata, for a mesh with the same faces."""
+        if not keep:
+            return {}
+        return dict(corner_attributes=self._corner, face_attributes=self._face, metadata=self._meta)
 
     def with_own_vertices(self, V: np.ndarray) -> "Mesh":
         """``with_vertices(V)`` for an array the caller hands over (not copied).
@@ -135,6 +156,7 @@ class Mesh:
         out._vertices = V
         out._topology = self._topology
         out._attributes = dict(self._attributes)
+        out._corner, out._face, out._meta = dict(self._corner), dict(self._face), dict(self._meta)
         return out
 
     def with_attributes(self, **attributes) -> "Mesh":
@@ -145,7 +167,30 @@ class Mesh:
                 attrs.pop(k, None)
             else:
                 attrs[k] = val
-        return Mesh(self._vertices, None, attributes=attrs, _topology=self._topology)
+        return Mesh(self._vertices, None, attributes=attrs, _topology=self._topology, **self._carried())
+
+    def with_corner_attributes(self, **attributes) -> "Mesh":
+        """A mesh with extra or replaced corner attributes (``None`` removes one)."""
+        return self._with("_corner", "corner_attributes", attributes)
+
+    def with_face_attributes(self, **attributes) -> "Mesh":
+        """A mesh with extra or replaced face attributes (``None`` removes one)."""
+        return self._with("_face", "face_attributes", attributes)
+
+    def with_metadata(self, **metadata) -> "Mesh":
+        """A mesh with extra or replaced file-level data (``None`` removes an entry)."""
+        return self._with("_meta", "metadata", metadata)
+
+    def _with(self, slot: str, keyword: str, changes: dict) -> "Mesh":
+        kept = self._carried()
+        new = dict(getattr(self, slot))
+        for k, val in changes.items():
+            if val is None:
+                new.pop(k, None)
+            else:
+                new[k] = val
+        kept[keyword] = new
+        return Mesh(self._vertices, None, attributes=self._attributes, _topology=self._topology, **kept)
 
     def with_weights(self, weights: ArrayLike | None) -> "Mesh":
         """A mesh with the given vertex weights (``None`` removes them)."""
@@ -191,9 +236,22 @@ class Mesh:
     @property
     def attributes(self) -> Mapping[str, np.ndarray]:
         """Per-vertex attributes (read-only view)."""
-        from types import MappingProxyType
-
         return MappingProxyType(self._attributes)
+
+    @property
+    def corner_attributes(self) -> Mapping[str, object]:
+        """Per-corner attributes (read-only view): (c, ...) arrays or ``Indexed`` tables."""
+        return MappingProxyType(self._corner)
+
+    @property
+    def face_attributes(self) -> Mapping[str, object]:
+        """Per-face attributes (read-only view): (m, ...) arrays or ``Labels``."""
+        return MappingProxyType(self._face)
+
+    @property
+    def metadata(self) -> Mapping[str, object]:
+        """File-level data kept for writing back (read-only view)."""
+        return MappingProxyType(self._meta)
 
     @property
     def weights(self) -> np.ndarray | None:
@@ -289,9 +347,18 @@ class Mesh:
             and np.array_equal(self.face_offsets, other.face_offsets)
             and self._attributes.keys() == other._attributes.keys()
             and all(np.array_equal(self._attributes[k], other._attributes[k]) for k in self._attributes)
+            and self._corner.keys() == other._corner.keys() and self._face.keys() == other._face.keys()
+            and all(_same(self._corner[k], other._corner[k]) for k in self._corner)
+            and all(_same(self._face[k], other._face[k]) for k in self._face)
         )
 
     __hash__ = None  # mutable-looking container semantics: not hashable
+
+
+def _same(a, b) -> bool:
+    if isinstance(a, np.ndarray) and isinstance(b, np.ndarray):
+        return np.array_equal(a, b)
+    return a == b
 
 
 def concatenate(meshes: Iterable[Mesh]) -> Mesh:

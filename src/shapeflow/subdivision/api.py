@@ -11,6 +11,7 @@ from .. import accel, params
 from ..errors import ParameterError
 from ..geometry.normals import refresh_normals
 from ..mesh import WEIGHT, Mesh, Topology
+from .attributes import child_corner_attribute, child_face_attribute
 from .level import build_levels
 from .rules import (
     BOUNDARY_RULES,
@@ -156,6 +157,8 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
 
     X = mesh.vertices
     topo = mesh.topology
+    corner = dict(mesh.corner_attributes)
+    face = dict(mesh.face_attributes)
     # each level's matrix is applied as its two factors (S = P @ Q), which is
     # cheaper than forming S for a single use; subdivision_matrix() forms it
     for done, (mats, child) in enumerate(build_levels(mesh, levels, schemes, boundary, edge_order, threads,
@@ -166,6 +169,8 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
                  for k, v in attrs.items()}
         if weights is not None:
             weights = mats[w_scheme] @ weights
+        corner = {k: child_corner_attribute(v, topo) for k, v in corner.items()}
+        face = {k: child_face_attribute(v, topo) for k, v in face.items()}
         topo = child
         if progress is not None:
             progress(done, levels)
@@ -181,4 +186,5 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
         elif dt != v.dtype:
             attrs[k] = v.astype(dt)
     # normals (nx, ny, nz) were averaged like the rest: recomputed from the new surface, in their type
-    return refresh_normals(Mesh(X, None, attributes=attrs, _topology=topo))
+    return refresh_normals(Mesh(X, None, attributes=attrs, corner_attributes=corner, face_attributes=face,
+                                metadata=mesh.metadata, _topology=topo))

@@ -8,7 +8,36 @@ import scipy.sparse as sp
 from ..mesh import Topology
 from .rules import CREASE, DART, SMOOTH, as_topology, base_sharpness, edge_point_order, face_point_matrix, vertex_rules
 
-__all__ = ["Level", "Factored", "build_levels"]
+__all__ = ["Level", "Factored", "build_levels", "child_corners"]
+
+
+def child_corners(t: Topology, cols) -> np.ndarray:
+    """(C, 4): the corners of the child quad of every parent corner c, from the four per-corner columns
+    ``cols`` = (at c's vertex, at the edge point c→next, at the face point, at the edge point prev→c).
+
+    Blender lays a quad's four children out on one grid: child k starts at its k-th vertex (same
+    quads, same orientation, rotated vertex lists); the children of other faces start at the old
+    vertex.  The same layout serves the vertices and every per-corner value.
+    """
+    C = t.n_corners
+    sizes = t.face_sizes
+    if C and (sizes == 4).all():
+        rot = np.arange(C, dtype=np.int64) & 3
+    elif C and (sizes == 4).any():
+        local = np.arange(C, dtype=np.int64) - np.repeat(t.face_offsets[:-1], sizes)
+        rot = np.where(np.repeat(sizes == 4, sizes), local, 0)
+    else:
+        rot = None
+    out = np.empty((C, 4) + np.shape(cols[0])[1:], dtype=np.result_type(*cols))
+    for j in range(4):
+        if rot is None:
+            out[:, j] = cols[j]
+        else:
+            r = (j - rot) & 3
+            for q in range(4):
+                sel = r == q
+                out[sel, j] = cols[q][sel]
+    return out
 
 
 class Level:
@@ -31,25 +60,10 @@ class Level:
     def new_topology(self) -> Topology:
         t = self.t
         n, E = self.n, self.E
-        C = t.n_corners
-        sizes = t.face_sizes
         ep = n + self.erank[t.corner_edge]          # edge point of c -> next(c)
         cols = (t.face_indices, ep, n + E + t.corner_face, ep[t.corner_prev])
-        # Blender lays a quad's four children out on one grid: child k starts at
-        # its k-th vertex (same quads, same orientation, rotated vertex lists);
-        # the children of other faces start at the old vertex
-        if C and (sizes == 4).all():
-            rot = np.arange(C, dtype=np.int64) & 3
-        elif C and (sizes == 4).any():
-            local = np.arange(C, dtype=np.int64) - np.repeat(t.face_offsets[:-1], sizes)
-            rot = np.where(np.repeat(sizes == 4, sizes), local, 0)
-        else:
-            rot = None
-        quads = np.empty((C, 4), dtype=np.int64)
-        for j in range(4):
-            quads[:, j] = cols[j] if rot is None else np.choose((j - rot) & 3, cols)
-        idx = quads.reshape(-1)
-        off = np.arange(C + 1, dtype=np.int64) * 4
+        idx = child_corners(t, cols).reshape(-1)
+        off = np.arange(t.n_corners + 1, dtype=np.int64) * 4
         idx.flags.writeable = False
         off.flags.writeable = False
         return Topology(idx, off, self.n_new)
