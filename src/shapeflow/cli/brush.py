@@ -19,7 +19,7 @@ import math
 import time
 
 from ..errors import ParameterError
-from .common import eprint, load_mesh_arg, progress_callback, resolve_output, save_mesh
+from .common import eprint, load_mesh_arg, progress_callback, resolve_output, save_mesh, welded_for_operator
 from .images import add_image_options
 
 STROKE_KEYS = {"lambda", "radius", "points", "spacing", "falloff", "lambda_border", "brush", "strength"}
@@ -143,21 +143,23 @@ def run(args) -> int:
 
         check_picture_path(args.image)
     mesh = load_mesh_arg(args.input)
-    weights = weights_arg(args.weights, mesh)
+    operand, kw, restore = welded_for_operator(mesh, {"weights": weights_arg(args.weights, mesh)}, "brush",
+                                               args.quiet)
+    weights = kw["weights"]
     t0 = time.perf_counter()
     if stroke["brush"] == "enhance":
-        brush = Brush(mesh, lam=stroke["lambda"], radius=stroke["radius"], falloff=stroke["falloff"],
+        brush = Brush(operand, lam=stroke["lambda"], radius=stroke["radius"], falloff=stroke["falloff"],
                       lam_border=stroke["lambda_border"], weights=weights, scheme=args.scheme,
                       normalized=not args.area_normalized, undo_limit=0)
     else:
-        brush = InflateBrush(mesh, strength=stroke["strength"], radius=stroke["radius"],
+        brush = InflateBrush(operand, strength=stroke["strength"], radius=stroke["radius"],
                              falloff=stroke["falloff"], weights=weights, undo_limit=0)
     t1 = time.perf_counter()
     centers = brush.dab_centers(stroke["points"], stroke["spacing"])
     with progress_callback(len(centers), "dabs", quiet=args.quiet) as cb:
         moved = brush.stroke(centers, spacing=None, progress=cb)
     t2 = time.perf_counter()
-    result = brush.mesh
+    result = restore(brush.mesh)
     save_mesh(out_path, result, args.force)
     if args.image:
         from .images import before_after

@@ -98,3 +98,28 @@ class progress_callback:
         if self.bar is not None:
             self.bar.close()
         return False
+
+
+def welded_for_operator(mesh, kw: dict, command: str, quiet: bool):
+    """The mesh the operator works on, and how to put a result back on the input's layout.
+
+    A mesh whose vertices are split at seams (or a triangle soup) is welded for the operator
+    (:func:`shapeflow.weld`) and the result scattered back, so every copy of a vertex moves alike
+    and the file keeps its layout and attributes; the command says so.  Weights given as an array
+    follow the weld.  Returns ``(mesh, kw, restore)``.
+    """
+    import numpy as np
+
+    from ..geometry.weld import needs_weld, unweld, weld
+
+    if mesh.n_faces == 0 or not needs_weld(mesh):
+        return mesh, kw, (lambda result: result)
+    welded = weld(mesh)
+    first = np.unique(welded.weld_map, return_index=True)[1]
+    if isinstance(kw.get("weights"), np.ndarray):
+        kw = {**kw, "weights": kw["weights"][first]}
+    if not quiet:
+        eprint(f"shapeflow {command}: {mesh.n_vertices - welded.n_vertices} vertices coincide with others "
+               f"(seams or a triangle soup): welded to {welded.n_vertices} for the operator, "
+               "the result written on the input's layout")
+    return welded, kw, (lambda result: unweld(result, mesh, welded))

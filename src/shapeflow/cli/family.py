@@ -19,7 +19,7 @@ from .. import params
 from ..errors import ParameterError
 from ..geometry import refresh_normals
 from ..io import output_target
-from .common import eprint, load_mesh_arg, progress_callback, save_mesh
+from .common import eprint, load_mesh_arg, progress_callback, save_mesh, welded_for_operator
 from .flow import add_flow_options, flow_kwargs
 
 #: members solved in one batch are held in memory together; above this many
@@ -173,7 +173,7 @@ def run(args) -> int:
     if not outdir.exists() and not parent.is_dir():
         raise ParameterError(f"OUTDIR {str(outdir)!r}: its folder {str(parent)!r} does not exist")
     mesh = load_mesh_arg(args.input)
-    kw = flow_kwargs(args, mesh)
+    operand, kw, restore = welded_for_operator(mesh, flow_kwargs(args, mesh), "family", args.quiet)
     outdir.mkdir(exist_ok=True)
     for p in (paths[0], image):   # every output writable before any work (the folder exists now)
         if p:
@@ -192,12 +192,12 @@ def run(args) -> int:
                 if cb is not None:
                     cb(_base + d, 2 * len(lams))
 
-            shapes, rep = family(mesh, [lams[i] for i in idx], strategy=args.strategy,
+            shapes, rep = family(operand, [lams[i] for i in idx], strategy=args.strategy,
                                  progress=solved, return_report=True, **kw)
             reports.append(rep)
             done += len(idx)
             for i, V in zip(idx, shapes):
-                save_mesh(str(paths[i]), refresh_normals(mesh.with_vertices(V)), args.force)
+                save_mesh(str(paths[i]), restore(refresh_normals(operand.with_vertices(V))), args.force)
                 if image and i in panels:
                     kept[i] = V
                 done += 1
@@ -206,7 +206,7 @@ def run(args) -> int:
     if image:
         from .images import family_image
 
-        family_image(image, [mesh.with_vertices(kept[i]) for i in panels], [lams[i] for i in panels],
+        family_image(image, [operand.with_vertices(kept[i]) for i in panels], [lams[i] for i in panels],
                      up=args.image_up, quiet=args.quiet)
     if not args.quiet:
         summary = "; ".join(r.summary() for r in reports)

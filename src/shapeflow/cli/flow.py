@@ -6,7 +6,7 @@ import os
 import time
 
 from ..errors import ParameterError
-from .common import eprint, load_mesh_arg, progress_callback, resolve_output, save_mesh
+from .common import eprint, load_mesh_arg, progress_callback, resolve_output, save_mesh, welded_for_operator
 from .images import add_image_options
 
 
@@ -88,12 +88,15 @@ def run(args) -> int:
     out_path = resolve_output(args.input, args.output, args.force, args.image)
     t0 = time.perf_counter()
     mesh = load_mesh_arg(args.input)
-    kw = flow_kwargs(args, mesh)
+    operand, kw, restore = welded_for_operator(mesh, flow_kwargs(args, mesh), args.command, args.quiet)
     with progress_callback(args.iterations, "flow", quiet=args.quiet) as cb:
-        result = flow(mesh, lam, progress=cb, **kw)
+        result = flow(operand, lam, progress=cb, **kw)
+    report = result.report
+    result = restore(result)
+    result.report = report
     save_mesh(out_path, result, args.force)
     if not args.quiet:
-        r = result.report
+        r = report
         eprint(f"shapeflow {args.command}: λ={lam:g}, {args.iterations} iteration(s), {mesh.n_vertices} vertices: "
                f"{r.summary()}; total {time.perf_counter() - t0:.3f} s -> {out_path}")
     if args.image:

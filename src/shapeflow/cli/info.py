@@ -47,6 +47,13 @@ def describe(mesh, name: str = "mesh") -> str:
                      f"{t.boundary_vertices.size} vertices")
     else:
         lines.append("  boundary        none (closed)")
+    from ..geometry.weld import WELD_TOL, weld_map
+
+    wmap = weld_map(mesh.vertices, WELD_TOL, mesh.diagonal)
+    shared = mesh.n_vertices - (int(wmap.max()) + 1 if wmap.size else 0)
+    if shared:
+        lines.append(f"  coincident      {shared} vertices share a position with another (seams or a triangle "
+                     "soup; the commands weld them for the operator)")
     d = mesh.diagnostics()
     manifold = d.nonmanifold_edges == 0 and d.nonmanifold_vertices == 0
     lines.append(f"  manifold        {'yes' if manifold else 'no'}")

@@ -1,0 +1,119 @@
+"""Welding: one vertex for each group of coincident vertices, and back.
+
+Formats and libraries that split vertices at UV or normal seams (glTF, STL triangle soups, pyvista
+meshes) describe one surface with several copies of a vertex.  The operator must see one surface,
+so :func:`weld` merges coincident vertices (within ``tol`` × the bounding-box diagonal) and keeps
+the map; :func:`unweld` puts a result computed on the welded mesh back on the original layout, so
+every copy of a vertex moves identically and the file's vertices, faces and attributes are
+unchanged.
+
+Examples
+--------
+>>> import numpy as np, shapeflow as sf
+>>> soup = sf.Mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.]]),
+...                [[0, 1, 2], [3, 4, 5]])
+>>> w = sf.weld(soup)
+>>> w.n_vertices, w.faces_as_lists()
+(4, [[0, 1, 2], [1, 3, 2]])
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import ParameterError
+from ..mesh import Mesh
+from ..mesh.attributes import Indexed, Labels
+from .normals import refresh_normals
+
+__all__ = ["WELD_TOL", "weld", "weld_map", "unweld", "needs_weld"]
+
+#: default welding distance, relative to the bounding-box diagonal (float32 files round at ~6e-8)
+WELD_TOL = 1e-7
+
+
+def weld_map(vertices: np.ndarray, tol: float, diagonal: float) -> np.ndarray:
+    """(n,) the welded vertex of each vertex: groups of vertices joined by distances <= tol × diagonal,
+    numbered in order of their first vertex."""
+    n = vertices.shape[0]
+    if n == 0:
+        return np.zeros(0, np.int64)
+    r = tol * diagonal
+    if r > 0:
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+        from scipy.spatial import cKDTree
+
+        pairs = cKDTree(vertices).query_pairs(r, output_type="ndarray")
+        g = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+        _, labels = connected_components(g, directed=False)
+    else:   # exact coincidence only
+        _, labels = np.unique(vertices, axis=0, return_inverse=True)
+        labels = labels.reshape(-1)
+    # renumber the groups by their first vertex (stable: welding a welded mesh changes nothing)
+    first = np.full(labels.max() + 1, n, np.int64)
+    np.minimum.at(first, labels, np.arange(n))
+    order = np.argsort(first, kind="stable")
+    rank = np.empty_like(order)
+    rank[order] = np.arange(order.size)
+    return rank[labels]
+
+
+def needs_weld(mesh: Mesh, *, tol: float = WELD_TOL) -> bool:
+    """Whether some vertices of ``mesh`` coincide (within ``tol`` × the diagonal): seams or a soup."""
+    m = weld_map(mesh.vertices, tol, mesh.diagonal)
+    return bool(m.size) and int(m.max()) + 1 < mesh.n_vertices
+
+
+def weld(mesh: Mesh, *, tol: float = WELD_TOL) -> Mesh:
+    """``mesh`` with each group of coincident vertices merged into its first vertex.
+
+    Faces keep their order; a face that the merge leaves with a repeated vertex (its corners
+    coincided: no area) is dropped.  Per-vertex attributes take the first vertex's values; corner
+    and face attributes follow their faces.  ``result.weld_map`` (n,) gives the welded vertex of
+    each input vertex and ``result.weld_faces`` the input face of each welded face (for
+    :func:`unweld`).
+    """
+    if not isinstance(mesh, Mesh):
+        raise ParameterError(f"weld() needs a shapeflow.Mesh, got {type(mesh).__name__}")
+    try:
+        tol = float(tol)
+    except (TypeError, ValueError):
+        raise ParameterError(f"tol must be a number, got {tol!r}") from None
+    if not (0.0 <= tol < 1.0):
+        raise ParameterError(f"tol must be in [0, 1) (relative to the diagonal), got {tol!r}")
+    wmap = weld_map(mesh.vertices, tol, mesh.diagonal)
+    k = int(wmap.max()) + 1 if wmap.size else 0
+    first = np.full(k, mesh.n_vertices, np.int64)
+    np.minimum.at(first, wmap, np.arange(mesh.n_vertices))
+    t = mesh.topology
+    fi = wmap[t.face_indices]
+    # faces whose corners collapsed: some vertex repeated inside the face after the merge
+    order = np.lexsort((fi, t.corner_face))
+    dup = np.zeros(fi.size, bool)
+    same = (fi[order][1:] == fi[order][:-1]) & (t.corner_face[order][1:] == t.corner_face[order][:-1])
+    dup[order[1:][same]] = True
+    bad_face = np.zeros(t.n_faces, bool)
+    bad_face[t.corner_face[dup]] = True
+    keep_face = np.flatnonzero(~bad_face)
+    keep_corner = ~bad_face[t.corner_face]
+    corner = {}
+    for name, a in mesh.corner_attributes.items():
+        corner[name] = (Indexed(a.values, a.index[keep_corner]) if isinstance(a, Indexed)
+                        else np.asarray(a)[keep_corner])
+    face = {name: (Labels(a.codes[keep_face], a.names) if isinstance(a, Labels) else np.asarray(a)[keep_face])
+            for name, a in mesh.face_attributes.items()}
+    out = Mesh.from_csr(mesh.vertices[first], t.face_sizes[keep_face], fi[keep_corner],
+                        attributes={n: np.asarray(v)[first] for n, v in mesh.attributes.items()},
+                        corner_attributes=corner, face_attributes=face, metadata=mesh.metadata)
+    out.weld_map = wmap
+    out.weld_faces = keep_face
+    return out
+
+
+def unweld(result: Mesh, original: Mesh, welded: Mesh) -> Mesh:
+    """The positions of ``result`` (a mesh computed on ``welded = weld(original)``) on ``original``'s
+    layout: every copy of a vertex gets its welded vertex's position.  Attributes are the
+    original's (normals recomputed from the new surface)."""
+    V = np.asarray(result.vertices)[welded.weld_map]
+    return refresh_normals(original.with_vertices(V))

@@ -1,0 +1,88 @@
+"""Seams and soups smooth as one surface: weld for the operator, scatter the result back."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import MESHES, requires_shared
+
+import shapeflow as sf
+from shapeflow.mesh.attributes import Indexed
+
+
+def soup_of(mesh):
+    """Every face with its own copies of its vertices (an unwelded STL)."""
+    V = mesh.vertices[mesh.face_indices]
+    return sf.Mesh.from_csr(V, mesh.face_sizes, np.arange(V.shape[0]))
+
+
+def seamed(mesh, cut):
+    """Vertices split along a seam, as glTF writes them: faces in ``cut`` get their own copies of
+    the vertices they share with the other faces; the UVs index the copies."""
+    fi = mesh.face_indices.copy()
+    in_cut = np.repeat(cut, mesh.face_sizes)
+    shared = np.intersect1d(fi[in_cut], fi[~in_cut])
+    new_id = np.full(mesh.n_vertices, -1)
+    new_id[shared] = mesh.n_vertices + np.arange(shared.size)
+    move = in_cut & np.isin(fi, shared)
+    fi[move] = new_id[fi[move]]
+    V = np.concatenate([mesh.vertices, mesh.vertices[shared]])
+    uv = Indexed(V[:, :2].copy(), fi.copy())
+    return sf.Mesh.from_csr(V, mesh.face_sizes, fi, corner_attributes={"uv": uv}), shared
+
+
+@requires_shared
+def test_a_soup_smooths_like_the_welded_mesh():
+    m = sf.load(MESHES / "spot_quad.obj")
+    soup = soup_of(m)
+    assert soup.n_vertices == m.n_corners and sf.weld(soup).n_vertices == m.n_vertices
+    w = sf.weld(soup)
+    out = sf.unweld(sf.flow(w, -5.0), soup, w)
+    ref = sf.flow(m, -5.0)
+    # every copy of a vertex lands where the welded surface puts it
+    np.testing.assert_allclose(out.vertices, ref.vertices[m.face_indices], rtol=0, atol=1e-12)
+    # without welding the operator sees separate faces: a soup does not move as a surface would
+    alone = sf.flow(soup, -5.0)
+    assert np.abs(alone.vertices - ref.vertices[m.face_indices]).max() > 1e-3
+
+
+@requires_shared
+def test_a_uv_seam_smooths_as_one_surface_and_keeps_its_layout():
+    m = sf.load(MESHES / "spot_quad.obj")
+    cut = m.vertices[m.face_indices].reshape(-1, 4, 3)[:, :, 0].mean(axis=1) > 0.1   # one side of Spot
+    s, shared = seamed(m, cut)
+    assert shared.size > 10
+    w = sf.weld(s)
+    out = sf.unweld(sf.flow(w, -5.0, iterations=2), s, w)
+    ref = sf.flow(m, -5.0, iterations=2)
+    copies = np.arange(m.n_vertices, s.n_vertices)
+    np.testing.assert_allclose(out.vertices[copies], out.vertices[shared], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(out.vertices[:m.n_vertices], ref.vertices, rtol=0, atol=1e-12)
+    assert out.face_indices.tolist() == s.face_indices.tolist()
+    assert out.corner_attributes["uv"] == s.corner_attributes["uv"]
+
+
+def test_weld_drops_faces_whose_corners_coincide_and_keeps_order():
+    V = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [2, 0, 0], [2, 0, 0.0]])
+    m = sf.Mesh(V, [[0, 1, 2], [3, 4, 5], [1, 6, 7]])          # the last face has two equal corners
+    w = sf.weld(m)
+    assert w.faces_as_lists() == [[0, 1, 2], [1, 3, 2]]
+    assert w.weld_map.tolist() == [0, 1, 2, 1, 3, 2, 4, 4] and w.weld_faces.tolist() == [0, 1]
+    assert sf.weld(w).n_vertices == w.n_vertices               # welding twice changes nothing
+    with pytest.raises(sf.ParameterError, match="tol"):
+        sf.weld(m, tol=-1)
+
+
+def test_the_command_welds_a_soup_and_says_so(tmp_path, capsys):
+    from shapeflow.cli import main
+
+    m = sf.load_example("spot")
+    soup = soup_of(m)
+    sf.save(tmp_path / "soup.ply", soup)
+    assert main(["enhance", str(tmp_path / "soup.ply"), str(tmp_path / "out.ply"), "--strength", "5"]) == 0
+    err = capsys.readouterr().err
+    assert f"{soup.n_vertices - m.n_vertices} vertices coincide" in err
+    out = sf.load(tmp_path / "out.ply")
+    np.testing.assert_allclose(out.vertices, sf.flow(m, -5.0).vertices[m.face_indices], rtol=0, atol=1e-12)
+    assert main(["info", str(tmp_path / "soup.ply")]) == 0
+    assert f"{soup.n_vertices - m.n_vertices} vertices share a position" in capsys.readouterr().out
