@@ -66,6 +66,7 @@ from .obj import read_obj, write_obj
 from .off import read_off, write_off
 from .ply import read_ply, write_ply
 from .registry import FORMATS, MeshFormat, load, register_format, save
+from .stl import read_stl, write_stl
 from .weights import WEIGHT_EXTENSIONS, load_weights, save_weights
 
 __all__ = [
@@ -76,3 +77,4 @@ __all__ = [
 register_format(MeshFormat("OBJ", (".obj",), read_obj, write_obj))
 register_format(MeshFormat("OFF", (".off",), read_off, write_off))
 register_format(MeshFormat("PLY", (".ply",), read_ply, write_ply, attributes=True, binary=True))
+register_format(MeshFormat("STL", (".stl",), read_stl, write_stl, binary=True))
