@@ -555,7 +555,7 @@ MALFORMED = {
     "bin_negative_count.ply": (BIN_HEAD.replace(b"uchar int", b"int int") % 1 + BIN_VERTS
                                + struct.pack("<ii", -1, 0), r"face 0: negative list length -1"),
     "bin_junk.ply": (BIN_HEAD % 5 + bytes(range(7, 200)), r"vertex|face"),
-    "unknown.stl": (b"solid x\n", r"unknown mesh extension '\.stl'"),
+    "unknown.fbx": (b"Kaydara FBX Binary", r"unknown mesh extension '\.fbx'"),
 }
 
 
