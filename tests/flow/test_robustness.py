@@ -237,9 +237,9 @@ def test_bad_input_raises_named_value_error(name, call, exc, match):
 def test_bad_files(tmp_path):
     with pytest.raises(MeshError, match="missing.obj"):
         sf.load(tmp_path / "missing.obj")
-    p = tmp_path / "mesh.stl"
-    p.write_text("solid x")
-    with pytest.raises(MeshError, match="stl"):
+    p = tmp_path / "mesh.fbx"
+    p.write_text("Kaydara FBX")
+    with pytest.raises(MeshError, match="fbx"):
         sf.load(p)
     junk = tmp_path / "junk.ply"
     junk.write_bytes(os.urandom(4096))
@@ -291,7 +291,7 @@ def test_cli_refuses_to_overwrite_input_and_leaves_no_partial_file(tmp_path, cap
     (["enhance", "{src}", "{out}", "--strength", "1", "--axes", "xq"], "axes"),
     (["enhance", "{src}", "{out}", "--strength", "1", "--weights", "nosuch"], "neither a file nor"),
     (["enhance", "{missing}", "{out}", "--strength", "1"], "missing"),
-    (["enhance", "{src}", "{tmp}/out.stl", "--strength", "1"], "stl"),
+    (["enhance", "{src}", "{tmp}/out.fbx", "--strength", "1"], "fbx"),
     (["info", "{junk}"], "junk"),
     (["subdivide", "{src}", "{out}", "--levels", "-1"], "levels"),
 ])

@@ -357,10 +357,13 @@ def test_obj_and_off_drop_attributes(tmp_path):
         _assert_same(r, m)
 
 
-def test_multicolumn_attributes_are_not_written_to_ply(tmp_path):
-    m = _mixed_mesh(attributes={"normal": np.ones((11, 3)), "w2": np.zeros(11)})
+def test_multicolumn_attributes_are_written_to_ply_one_column_each(tmp_path):
+    cols = np.arange(33.0).reshape(11, 3)
+    m = _mixed_mesh(attributes={"normal": cols, "w2": np.zeros(11)})
     sio.save(tmp_path / "a.ply", m)
-    assert list(sio.load(tmp_path / "a.ply").attributes) == ["w2"]
+    back = sio.load(tmp_path / "a.ply")
+    assert list(back.attributes) == ["normal_0", "normal_1", "normal_2", "w2"]
+    np.testing.assert_array_equal(np.column_stack([back.attributes[f"normal_{i}"] for i in range(3)]), cols)
 
 
 def test_attribute_name_that_cannot_be_a_ply_property(tmp_path):

@@ -64,7 +64,8 @@ quads) are read as strided arrays.
 from .atomic import atomic_write, output_target
 from .obj import read_obj, write_obj
 from .off import read_off, write_off
-from .ply import read_ply, write_ply
+from .ply import read_ply
+from .ply_write import write_ply
 from .registry import FORMATS, MeshFormat, load, register_format, save
 from .stl import read_stl, write_stl
 from .weights import WEIGHT_EXTENSIONS, load_weights, save_weights

@@ -3,19 +3,19 @@
 from __future__ import annotations
 
 import re
+import warnings
 from dataclasses import dataclass
-from typing import BinaryIO
 
 import numpy as np
 
-from ..errors import MeshError
+from ..errors import DataLossWarning, MeshError
 from ..mesh import Mesh
-from .text import Text, build_mesh, ranges, strip_bom, write_faces_text, write_rows
+from .text import Text, build_mesh, ranges, strip_bom
 
-__all__ = ["read_ply", "write_ply"]
+__all__ = ["read_ply", "PLY_TYPES", "OWN_COMMENT"]
 
 
-_PLY_TYPES = {
+PLY_TYPES = {
     "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
     "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
     "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
@@ -24,6 +24,7 @@ _PLY_TYPES = {
 _PLY_FORMATS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"}
 _END_HEADER_RE = re.compile(rb"^end_header[ \t]*(?:\r?\n|$)", re.MULTILINE)
 _FACE_LISTS = ("vertex_indices", "vertex_index")
+OWN_COMMENT = "written by shapeflow"
 
 
 @dataclass
@@ -80,12 +81,12 @@ def _parse_ply_header(header: str, name: str) -> tuple[str | None, list[_Element
             if len(words) >= 3 and any(p.name == words[-1] for p in elements[-1].props):
                 raise err(f"property '{words[-1]}' of element '{elements[-1].name}' is declared twice; "
                           "which one holds the values is ambiguous")
-            if len(words) == 3 and words[1] in _PLY_TYPES:
-                elements[-1].props.append(_Prop(words[2], np.dtype(_PLY_TYPES[words[1]])))
-            elif (len(words) == 5 and words[1] == "list" and words[2] in _PLY_TYPES
-                  and words[3] in _PLY_TYPES and _PLY_TYPES[words[2]][0] in "iu"):
+            if len(words) == 3 and words[1] in PLY_TYPES:
+                elements[-1].props.append(_Prop(words[2], np.dtype(PLY_TYPES[words[1]])))
+            elif (len(words) == 5 and words[1] == "list" and words[2] in PLY_TYPES
+                  and words[3] in PLY_TYPES and PLY_TYPES[words[2]][0] in "iu"):
                 elements[-1].props.append(
-                    _Prop(words[4], np.dtype(_PLY_TYPES[words[3]]), np.dtype(_PLY_TYPES[words[2]])))
+                    _Prop(words[4], np.dtype(PLY_TYPES[words[3]]), np.dtype(PLY_TYPES[words[2]])))
             else:
                 raise err(f"bad property line {line.strip()!r}")
         else:
@@ -328,11 +329,47 @@ def read_ply(data: bytes, name: str) -> Mesh:
         raise MeshError(f"{name}: PLY file has no 'vertex' element")
     vertices, attributes = _vertex_data(vel, found["vertex"], name, vloc)
     fel = next((el for el in elements if el.name == "face"), None)
+    corner, face, lost = {}, {}, []
     if fel is None:
         sizes, idx = np.zeros(0, np.int64), np.zeros(0, np.int64)
     else:
         sizes, idx = _face_data(fel, found["face"], vertices.shape[0], name, floc)
-    return build_mesh(name, vertices, sizes, idx, attributes=attributes, where_vertex=vloc, where_face=floc)
+        face, corner, lost = _face_extras(fel, found["face"], sizes, name)
+    lost += [f"element '{el.name}' ({el.count})" for el in elements if el.name not in ("vertex", "face")]
+    if lost:
+        warnings.warn(DataLossWarning(f"{name}: not kept: {', '.join(lost)}"), stacklevel=3)
+    meta = {key: [ln.split(None, 1)[1] if len(ln.split(None, 1)) > 1 else "" for ln in header.split("\n")
+                  if ln.split(None, 1)[:1] == [key]] for key in ("comment", "obj_info")}
+    meta["comment"] = [c for c in meta["comment"] if c != OWN_COMMENT]
+    mesh = build_mesh(name, vertices, sizes, idx, attributes=attributes, where_vertex=vloc, where_face=floc)
+    if corner or face or meta["comment"] or meta["obj_info"]:
+        try:
+            mesh = Mesh(mesh.vertices, None, attributes=mesh.attributes, corner_attributes=corner,
+                        face_attributes=face, metadata={"ply": meta}, _topology=mesh.topology)
+        except MeshError as exc:
+            raise MeshError(f"{name}: {exc}") from None
+    return mesh
+
+
+def _face_extras(fel: _Element, vals: dict, sizes: np.ndarray, name: str):
+    """Face properties besides the vertex list: scalars as face attributes (in their type), a
+    'texcoord' list of two values per corner as the corner attribute "uv"; what else (lists that
+    are neither) is named as lost."""
+    face, corner, lost = {}, {}, []
+    vlist = next((p for p in fel.props if p.is_list and p.name in _FACE_LISTS), None) or \
+        next((p for p in fel.props if p.is_list), None)
+    for p in fel.props:
+        if p is vlist:
+            continue
+        if not p.is_list:
+            v = np.asarray(vals[p.name])
+            dt = p.dtype.newbyteorder("=")
+            face[p.name] = v if (dt.kind == "f" and v.dtype == np.float64) else v.astype(dt)
+        elif p.name in ("texcoord", "texcoords") and np.array_equal(np.asarray(vals[p.name][0]), 2 * sizes):
+            corner["uv"] = np.asarray(vals[p.name][1], dtype=np.float64).reshape(-1, 2)
+        else:
+            lost.append(f"face list '{p.name}'")
+    return face, corner, lost
 
 
 def _read_ascii_body(data: bytes, start: int, elements: list[_Element], name: str):
@@ -434,72 +471,3 @@ def _first_record(elements: list[_Element], which: str) -> int:
             return r
         r += el.count
     return r  # pragma: no cover
-
-
-def _ply_attributes(mesh: Mesh) -> dict[str, np.ndarray]:
-    """The attributes PLY can store: 1-D ones with a name that is one word."""
-    out = {}
-    for key, values in mesh.attributes.items():
-        if values.ndim != 1:
-            continue  # multi-column attributes are not written (documented)
-        if not key or any(ch.isspace() for ch in key) or not key.isascii() or key in ("x", "y", "z"):
-            raise MeshError(f"attribute name {key!r} cannot be a PLY property name")
-        out[key] = values
-    return out
-
-
-#: NumPy type -> PLY type name: _PLY_TYPES read backwards, the classic names (char, uchar, ...) winning
-_PLY_NAMES = {code: name for name, code in reversed(list(_PLY_TYPES.items()))}
-
-
-def _ply_type(values: np.ndarray) -> np.dtype:
-    dt = values.dtype
-    if dt.kind in "iu" and dt.itemsize == 8:
-        fits = values.size == 0 or (int(values.min()) >= -2**31 and int(values.max()) < 2**31)
-        return np.dtype("i4") if fits else np.dtype("f8")
-    key = f"{dt.kind}{dt.itemsize}"
-    return np.dtype(key) if key in _PLY_NAMES else np.dtype("f8")
-
-
-def write_ply(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None, byteorder: str = "<") -> None:
-    binary = True if binary is None else bool(binary)
-    attrs = _ply_attributes(mesh)
-    types = {k: _ply_type(v) for k, v in attrs.items()}
-    sizes = mesh.face_sizes
-    count_type = "uchar" if sizes.size == 0 or int(sizes.max()) <= 255 else "int"
-    fmt = ("binary_little_endian" if byteorder == "<" else "binary_big_endian") if binary else "ascii"
-    head = ["ply", f"format {fmt} 1.0", "comment written by shapeflow",
-            f"element vertex {mesh.n_vertices}",
-            "property double x", "property double y", "property double z"]
-    head += [f"property {_PLY_NAMES[f'{types[k].kind}{types[k].itemsize}']} {k}" for k in attrs]
-    head += [f"element face {mesh.n_faces}", f"property list {count_type} int vertex_indices", "end_header"]
-    f.write(("\n".join(head) + "\n").encode("ascii"))
-    if not binary:   # integers exactly as %d (every PLY integer type fits a double exactly)
-        columns = np.column_stack([mesh.vertices] + [v.astype(np.float64)[:, None] for v in attrs.values()])
-        fmts = ["%r"] * 3 + ["%d" if types[k].kind in "iu" else "%r" for k in attrs]
-        write_rows(f, " ".join(fmts) + "\n", columns)
-        write_faces_text(f, mesh, "", 0, with_size=True)
-        return
-    rec = np.empty(mesh.n_vertices, dtype=[("xyz", byteorder + "f8", (3,))]
-                   + [(f"a{i}", types[k].newbyteorder(byteorder)) for i, k in enumerate(attrs)])
-    rec["xyz"] = mesh.vertices
-    for i, (k, v) in enumerate(attrs.items()):
-        rec[f"a{i}"] = v
-    f.write(rec.tobytes())
-    cdt = np.dtype(byteorder + ("u1" if count_type == "uchar" else "i4"))
-    idt = np.dtype(byteorder + "i4")
-    offsets, indices = mesh.face_offsets, mesh.face_indices
-    chunk = 1 << 18
-    for f0 in range(0, sizes.size, chunk):
-        f1 = min(f0 + chunk, sizes.size)
-        s = sizes[f0:f1]
-        c0, c1 = int(offsets[f0]), int(offsets[f1])
-        m, ncorner = f1 - f0, c1 - c0
-        csz, isz = cdt.itemsize, idt.itemsize
-        out = np.empty(m * csz + ncorner * isz, dtype=np.uint8)
-        face_at = (offsets[f0:f1] - c0) * isz + np.arange(m) * csz
-        out[face_at[:, None] + np.arange(csz)] = s.astype(cdt).view(np.uint8).reshape(m, csz)
-        corner_face = np.repeat(np.arange(m), s)
-        corner_at = np.arange(ncorner) * isz + (corner_face + 1) * csz
-        out[corner_at[:, None] + np.arange(isz)] = indices[c0:c1].astype(idt).view(np.uint8).reshape(ncorner, isz)
-        f.write(out.tobytes())
