@@ -278,7 +278,20 @@ def _state_lines(mesh: Mesh) -> dict[int, str]:
     return {q: "".join(v).replace("%", "%%") for q, v in out.items()}
 
 
+def _obj_losses(mesh: Mesh) -> list[str]:
+    lost = [f"vertex attribute '{k}'" for k, v in mesh.attributes.items()
+            if not (k == "color" and v.ndim == 2 and v.shape[1] == 3)]
+    lost += [f"corner attribute '{k}'" for k in mesh.corner_attributes if k not in ("uv", "normal")]
+    lost += [f"face attribute '{k}'" for k, v in mesh.face_attributes.items()
+             if k not in FACE_TAGS.values() or not isinstance(v, Labels)]
+    return lost
+
+
 def write_obj(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None) -> None:
+    lost = _obj_losses(mesh)
+    if lost:
+        warnings.warn(DataLossWarning("OBJ cannot store: " + ", ".join(lost) + " (PLY keeps vertex and face "
+                                      "attributes)"), stacklevel=4)
     meta = mesh.metadata.get("obj", {})
     head = [f"# {_OWN_HEADER} {mesh.n_vertices} vertices, {mesh.n_faces} faces"]
     head += [f"# {c}" for c in meta.get("comments", [])]

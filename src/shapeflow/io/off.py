@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import re
+import warnings
 from typing import BinaryIO
 
 import numpy as np
 
-from ..errors import MeshError
+from ..errors import DataLossWarning, MeshError
 from ..mesh import Mesh
 from .text import Text, build_mesh, ranges, text_data, write_faces_text, write_rows
 
@@ -83,6 +84,12 @@ def read_off(data: bytes, name: str) -> Mesh:
 
 
 def write_off(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None) -> None:
+    lost = ([f"vertex attribute '{k}'" for k in mesh.attributes]
+            + [f"corner attribute '{k}'" for k in mesh.corner_attributes]
+            + [f"face attribute '{k}'" for k in mesh.face_attributes])
+    if lost:
+        warnings.warn(DataLossWarning("OFF stores positions and faces only; not kept: " + ", ".join(lost)),
+                      stacklevel=4)
     f.write(f"OFF\n{mesh.n_vertices} {mesh.n_faces} 0\n".encode())
     write_rows(f, "%r %r %r\n", mesh.vertices)
     write_faces_text(f, mesh, "", 0, with_size=True)
