@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["SCALE_LO", "SCALE_HI", "pow2_exponent", "face_vector_areas", "signed_volume", "mean_edge_length"]
+__all__ = ["SCALE_LO", "SCALE_HI", "pow2_exponent", "face_vector_areas", "signed_volume", "mean_edge_length",
+           "fan_triangles"]
 
 #: Coordinates whose largest magnitude lies outside [SCALE_LO, SCALE_HI] are computed on a copy
 #: scaled by a power of two (exact in binary floating point), so that no square, cross product or
@@ -89,3 +90,14 @@ def mean_edge_length(mesh, vertices: np.ndarray | None = None) -> float:
         return 0.0
     v = mesh.vertices if vertices is None else vertices
     return float(np.linalg.norm(v[e[:, 0]] - v[e[:, 1]], axis=1).mean())
+
+
+def fan_triangles(mesh) -> np.ndarray:
+    """(T, 3) triangles of the faces, each face as a fan from its first corner (for formats that
+    store triangles only)."""
+    t = mesh.topology
+    fi = t.face_indices
+    first = np.repeat(t.face_offsets[:-1], t.face_sizes)
+    k = np.arange(t.n_corners)
+    use = (k != first) & (t.corner_next != first)
+    return np.stack([fi[first[use]], fi[k[use]], fi[t.corner_next[use]]], axis=1)

@@ -70,6 +70,26 @@ from .registry import FORMATS, MeshFormat, load, register_format, save
 from .stl import read_stl, write_stl
 from .weights import WEIGHT_EXTENSIONS, load_weights, save_weights
 
+
+def _read_gltf(data, name):   # pygltflib is imported on first use
+    from .gltf import read_gltf
+
+    return read_gltf(data, name)
+
+
+def _write_gltf(f, mesh, *, binary=None):
+    from .gltf import write_gltf
+
+    write_gltf(f, mesh, binary=binary)
+
+
+def _write_glb(f, mesh, *, binary=None):
+    from .gltf import write_glb
+
+    write_glb(f, mesh, binary=binary)
+
+
+
 __all__ = [
     "load", "save", "load_weights", "save_weights", "atomic_write", "output_target",
     "MeshFormat", "FORMATS", "register_format", "WEIGHT_EXTENSIONS",
@@ -79,3 +99,5 @@ register_format(MeshFormat("OBJ", (".obj",), read_obj, write_obj))
 register_format(MeshFormat("OFF", (".off",), read_off, write_off))
 register_format(MeshFormat("PLY", (".ply",), read_ply, write_ply, attributes=True, binary=True))
 register_format(MeshFormat("STL", (".stl",), read_stl, write_stl, binary=True))
+register_format(MeshFormat("glTF", (".gltf",), _read_gltf, _write_gltf, attributes=True, binary=True))
+register_format(MeshFormat("GLB", (".glb",), _read_gltf, _write_glb, attributes=True, binary=True))

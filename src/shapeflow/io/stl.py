@@ -20,7 +20,7 @@ from typing import BinaryIO
 import numpy as np
 
 from ..errors import DataLossWarning, MeshError
-from ..geometry.measures import face_vector_areas
+from ..geometry.measures import face_vector_areas, fan_triangles
 from ..mesh import Mesh
 from .text import Text, ranges, strip_bom
 
@@ -90,16 +90,6 @@ def _read_ascii(data: bytes, name: str):
     return V, meta
 
 
-def _triangles(mesh: Mesh) -> np.ndarray:
-    """(T, 3) triangles: each face as a fan from its first corner."""
-    t = mesh.topology
-    fi = t.face_indices
-    first = np.repeat(t.face_offsets[:-1], t.face_sizes)
-    k = np.arange(t.n_corners)
-    use = (k != first) & (t.corner_next != first)
-    return np.stack([fi[first[use]], fi[k[use]], fi[t.corner_next[use]]], axis=1)
-
-
 def _warn_losses(mesh: Mesh) -> None:
     lost = []
     ngons = int((mesh.face_sizes > 3).sum())
@@ -115,7 +105,7 @@ def _warn_losses(mesh: Mesh) -> None:
 
 def write_stl(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None) -> None:
     _warn_losses(mesh)
-    tris = _triangles(mesh)
+    tris = fan_triangles(mesh)
     V = mesh.vertices
     normals = face_vector_areas(Mesh.from_csr(V, np.full(tris.shape[0], 3), tris.reshape(-1)))
     ln = np.linalg.norm(normals, axis=1)

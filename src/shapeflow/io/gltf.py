@@ -1,0 +1,222 @@
+"""glTF 2.0 (``.gltf`` with its buffers, ``.glb``), through pygltflib (the ``gltf`` extra).
+
+Reading: every triangle primitive of every mesh becomes part of one :class:`~shapeflow.mesh.Mesh`
+(the face attribute ``"primitive"`` says which), with ``TEXCOORD_0`` as the corner attribute
+``"uv"``, ``NORMAL`` as the corner attribute ``"normal"`` and ``COLOR_0`` as the vertex attribute
+``"color"``.  glTF splits vertices at UV and normal seams; the commands weld them for the
+operator (:func:`shapeflow.weld`) and write the result in the file's layout.
+
+Writing a mesh read from a glTF file with its faces unchanged (smoothing, enhancement, the
+brush) writes the file back with new positions and normals only: materials, textures, nodes,
+animations and every other accessor pass through unchanged.  Any other mesh is written as a new
+single-mesh file.  Positions are float32 in glTF.
+"""
+
+from __future__ import annotations
+
+import copy
+import warnings
+from typing import BinaryIO
+
+import numpy as np
+
+from ..errors import DataLossWarning, MeshError, OptionalDependencyError
+from ..geometry.measures import fan_triangles
+from ..mesh import Mesh
+
+__all__ = ["read_gltf", "write_gltf", "write_glb"]
+
+_COMPONENT = {5120: "i1", 5121: "u1", 5122: "i2", 5123: "u2", 5125: "u4", 5126: "f4"}
+_WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
+TRIANGLES = 4
+
+
+def _lib():
+    try:
+        import pygltflib
+    except ImportError as exc:
+        raise OptionalDependencyError("pygltflib", "gltf", "reading and writing glTF") from exc
+    return pygltflib
+
+
+def _blob(gltf, buffer_index: int, name: str) -> bytes:
+    buf = gltf.buffers[buffer_index]
+    if buf.uri is None:
+        data = gltf.binary_blob()
+    else:
+        data = gltf.get_data_from_buffer_uri(buf.uri)
+    if data is None:
+        raise MeshError(f"{name}: buffer {buffer_index} cannot be read")
+    return data
+
+
+def _accessor(gltf, index: int, name: str, blobs: dict) -> np.ndarray:
+    acc = gltf.accessors[index]
+    if acc.bufferView is None:
+        return np.zeros((acc.count, _WIDTH[acc.type]), _COMPONENT[acc.componentType])
+    view = gltf.bufferViews[acc.bufferView]
+    if view.buffer not in blobs:
+        blobs[view.buffer] = _blob(gltf, view.buffer, name)
+    dt = np.dtype("<" + _COMPONENT[acc.componentType])
+    width = _WIDTH[acc.type]
+    stride = view.byteStride or dt.itemsize * width
+    start = (view.byteOffset or 0) + (acc.byteOffset or 0)
+    raw = np.frombuffer(blobs[view.buffer], np.uint8)
+    need = start + stride * (acc.count - 1) + dt.itemsize * width if acc.count else start
+    if need > raw.size:
+        raise MeshError(f"{name}: accessor {index} runs past the end of its buffer")
+    rows = np.lib.stride_tricks.as_strided(raw[start:], (acc.count, dt.itemsize * width), (stride, 1))
+    out = np.ascontiguousarray(rows).view(dt).reshape(acc.count, width)
+    if acc.normalized and dt.kind in "iu":
+        out = out.astype(np.float64) / np.iinfo(dt).max
+    return out
+
+
+def _load(data: bytes, name: str):
+    lib = _lib()
+    try:
+        if data[:4] == b"glTF":
+            return lib.GLTF2.load_from_bytes(data)
+        return lib.GLTF2.load(name)            # from its path: external buffers are resolved beside it
+    except Exception as exc:  # pygltflib raises many kinds on a malformed file
+        raise MeshError(f"{name}: not a readable glTF file ({type(exc).__name__}: {exc})") from None
+
+
+def read_gltf(data: bytes, name: str) -> Mesh:
+    gltf = _load(data, name)
+    blobs: dict = {}
+    V, F, S, uv, nrm, col, prim, skipped = [], [], [], [], [], [], [], 0
+    base = 0
+    layout = []
+    for mi, mesh in enumerate(gltf.meshes or []):
+        for pi, p in enumerate(mesh.primitives):
+            if (p.mode if p.mode is not None else TRIANGLES) != TRIANGLES or p.attributes.POSITION is None:
+                skipped += 1
+                continue
+            pos = _accessor(gltf, p.attributes.POSITION, name, blobs).astype(np.float64)
+            n = pos.shape[0]
+            idx = (_accessor(gltf, p.indices, name, blobs).reshape(-1).astype(np.int64) if p.indices is not None
+                   else np.arange(n))
+            if idx.size % 3 or (idx.size and (idx.min() < 0 or idx.max() >= n)):
+                raise MeshError(f"{name}: mesh {mi} primitive {pi}: indices are not triangles of its vertices")
+            V.append(pos)
+            F.append(idx + base)
+            S.append(np.full(idx.size // 3, 3))
+            prim.append(np.full(idx.size // 3, len(layout)))
+            per_corner = lambda a: a[idx]   # noqa: E731  (glTF attributes are per vertex: per corner here)
+            uv.append(per_corner(_accessor(gltf, p.attributes.TEXCOORD_0, name, blobs))
+                      if p.attributes.TEXCOORD_0 is not None else None)
+            nrm.append(per_corner(_accessor(gltf, p.attributes.NORMAL, name, blobs))
+                       if p.attributes.NORMAL is not None else None)
+            col.append(_accessor(gltf, p.attributes.COLOR_0, name, blobs) if p.attributes.COLOR_0 is not None
+                       else None)
+            layout.append({"mesh": mi, "primitive": pi, "vertices": n, "position": p.attributes.POSITION,
+                           "normal": p.attributes.NORMAL})
+            base += n
+    if not V:
+        raise MeshError(f"{name}: no triangle mesh in the glTF file")
+    if skipped:
+        warnings.warn(DataLossWarning(f"{name}: {skipped} primitive(s) that are not triangles are not kept"),
+                      stacklevel=3)
+    corner, attrs = {}, {}
+    if all(u is not None for u in uv):
+        corner["uv"] = np.concatenate(uv).astype(np.float64)
+    if all(x is not None for x in nrm):
+        corner["normal"] = np.concatenate(nrm).astype(np.float64)
+    if all(c is not None for c in col):
+        attrs["color"] = np.concatenate([c[:, :3] if c.shape[1] >= 3 else c for c in col]).astype(np.float64)
+    face = {"primitive": np.concatenate(prim)} if len(layout) > 1 else {}
+    try:
+        return Mesh.from_csr(np.concatenate(V), np.concatenate(S), np.concatenate(F), attributes=attrs,
+                             corner_attributes=corner, face_attributes=face,
+                             metadata={"gltf": {"document": gltf, "layout": layout, "faces": np.concatenate(F)}})
+    except MeshError as exc:
+        raise MeshError(f"{name}: {exc}") from None
+
+
+def write_glb(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None) -> None:
+    """GLB: the binary container (``binary=False`` writes glTF JSON with embedded buffers)."""
+    write_gltf(f, mesh, binary=True if binary is None else binary)
+
+
+def write_gltf(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None) -> None:
+    """glTF JSON with the buffers embedded as data URIs (``binary=True``: GLB)."""
+    lib = _lib()
+    meta = mesh.metadata.get("gltf", {})
+    same = "document" in meta and np.array_equal(meta.get("faces", np.zeros(0)), mesh.face_indices)
+    if same:
+        gltf = copy.deepcopy(meta["document"])
+        blob = bytearray(_single_blob(gltf))
+        _update(gltf, blob, meta["layout"], mesh)
+    else:
+        if "document" in meta:
+            warnings.warn(DataLossWarning("the faces changed (subdivision?): the glTF scene, materials and textures "
+                                          "of the input are not written, only this mesh"), stacklevel=4)
+        gltf, blob = _new_document(lib, mesh)
+    gltf.set_binary_blob(bytes(blob))
+    if binary:
+        f.write(b"".join(gltf.save_to_bytes()))
+    else:
+        gltf.convert_buffers(lib.BufferFormat.DATAURI)
+        f.write(gltf.to_json().encode("utf-8"))
+
+
+def _single_blob(gltf) -> bytes:
+    if len(gltf.buffers) != 1:
+        raise MeshError("glTF files with several buffers are written back only as new documents")
+    return gltf.binary_blob() if gltf.buffers[0].uri is None else gltf.get_data_from_buffer_uri(gltf.buffers[0].uri)
+
+
+def _write_accessor(gltf, blob: bytearray, index: int, values: np.ndarray) -> None:
+    acc = gltf.accessors[index]
+    view = gltf.bufferViews[acc.bufferView]
+    start = (view.byteOffset or 0) + (acc.byteOffset or 0)
+    vals = np.ascontiguousarray(values, "<f4")
+    stride = view.byteStride or vals.shape[1] * 4
+    out = np.frombuffer(blob, np.uint8)
+    for k in range(vals.shape[1]):   # a column at a time (strided layouts too)
+        at = start + stride * np.arange(vals.shape[0]) + 4 * k
+        out[at[:, None] + np.arange(4)] = np.ascontiguousarray(vals[:, k]).view(np.uint8).reshape(-1, 4)
+    acc.min = vals.min(axis=0).astype(float).tolist()
+    acc.max = vals.max(axis=0).astype(float).tolist()
+
+
+def _update(gltf, blob: bytearray, layout: list, mesh: Mesh) -> None:
+    """New positions (and normals: per-vertex from the new surface) into the input's accessors."""
+    from ..geometry.normals import vertex_normals
+
+    nrm = vertex_normals(mesh)
+    base = 0
+    for item in layout:
+        n = item["vertices"]
+        _write_accessor(gltf, blob, item["position"], mesh.vertices[base:base + n])
+        if item["normal"] is not None:
+            _write_accessor(gltf, blob, item["normal"], nrm[base:base + n])
+        base += n
+    gltf.buffers[0].uri = None
+    gltf.buffers[0].byteLength = len(blob)
+
+
+def _new_document(lib, mesh: Mesh):
+    """A glTF document of one triangle mesh (quads and n-gons as fans)."""
+    lost = [f"vertex attribute '{k}'" for k in mesh.attributes] + [f"corner attribute '{k}'" for k in
+                                                                     mesh.corner_attributes]
+    lost += [f"face attribute '{k}'" for k in mesh.face_attributes]
+    if (mesh.face_sizes > 3).any():
+        lost.append(f"{int((mesh.face_sizes > 3).sum())} faces of 4+ corners (written as triangle fans)")
+    if lost:
+        warnings.warn(DataLossWarning("a new glTF document holds positions and triangles; not kept: "
+                                      + ", ".join(lost)), stacklevel=5)
+    tris = fan_triangles(mesh).astype("<u4")
+    pos = np.ascontiguousarray(mesh.vertices, "<f4")
+    blob = pos.tobytes() + tris.tobytes()
+    gltf = lib.GLTF2(
+        scene=0, scenes=[lib.Scene(nodes=[0])], nodes=[lib.Node(mesh=0)],
+        meshes=[lib.Mesh(primitives=[lib.Primitive(attributes=lib.Attributes(POSITION=0), indices=1)])],
+        accessors=[lib.Accessor(bufferView=0, componentType=5126, count=pos.shape[0], type="VEC3",
+                                min=pos.min(axis=0).tolist(), max=pos.max(axis=0).tolist()),
+                   lib.Accessor(bufferView=1, componentType=5125, count=tris.size, type="SCALAR")],
+        bufferViews=[lib.BufferView(buffer=0, byteOffset=0, byteLength=pos.nbytes, target=34962),
+                     lib.BufferView(buffer=0, byteOffset=pos.nbytes, byteLength=tris.nbytes, target=34963)],
+        buffers=[lib.Buffer(byteLength=len(blob))])
+    return gltf, bytearray(blob)

@@ -1,0 +1,112 @@
+"""glTF / GLB: a seamed, textured cube with a material and a node, built with pygltflib in the
+test, smooths as one surface and is written back with only positions and normals changed."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import shapeflow as sf
+
+pygltflib = pytest.importorskip("pygltflib", reason="pygltflib (the 'gltf' extra) is not installed")
+
+
+def cube_with_seams():
+    """24 vertices (4 per side: split at every edge, as exporters write cubes), UVs, normals, one
+    material, one node with a name."""
+    corners = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    sides = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+    pos, nrm, uv, idx = [], [], [], []
+    for s in sides:
+        p = corners[s]
+        n = np.cross(p[1] - p[0], p[2] - p[0])
+        base = len(pos)
+        pos += list(p)
+        nrm += [n / np.linalg.norm(n)] * 4
+        uv += [[0, 0], [1, 0], [1, 1], [0, 1]]
+        idx += [base, base + 1, base + 2, base, base + 2, base + 3]
+    pos, nrm, uv = (np.array(a, "<f4") for a in (pos, nrm, uv))
+    idx = np.array(idx, "<u2")
+    blob = pos.tobytes() + nrm.tobytes() + uv.tobytes() + idx.tobytes()
+    views, off = [], 0
+    for a in (pos, nrm, uv, idx):
+        views.append(pygltflib.BufferView(buffer=0, byteOffset=off, byteLength=a.nbytes))
+        off += a.nbytes
+    g = pygltflib.GLTF2(
+        scene=0, scenes=[pygltflib.Scene(nodes=[0])], nodes=[pygltflib.Node(mesh=0, name="Crate")],
+        materials=[pygltflib.Material(name="wood")],
+        meshes=[pygltflib.Mesh(primitives=[pygltflib.Primitive(
+            attributes=pygltflib.Attributes(POSITION=0, NORMAL=1, TEXCOORD_0=2), indices=3, material=0)])],
+        accessors=[pygltflib.Accessor(bufferView=0, componentType=5126, count=24, type="VEC3",
+                                      min=[-1, -1, -1], max=[1, 1, 1]),
+                   pygltflib.Accessor(bufferView=1, componentType=5126, count=24, type="VEC3"),
+                   pygltflib.Accessor(bufferView=2, componentType=5126, count=24, type="VEC2"),
+                   pygltflib.Accessor(bufferView=3, componentType=5123, count=36, type="SCALAR")],
+        bufferViews=views, buffers=[pygltflib.Buffer(byteLength=len(blob))])
+    g.set_binary_blob(blob)
+    return g, pos, uv, idx
+
+
+def _read(path):
+    g = pygltflib.GLTF2.load(str(path))
+    blob = g.binary_blob() if g.buffers[0].uri is None else g.get_data_from_buffer_uri(g.buffers[0].uri)
+
+    def acc(i, dt, w):
+        a, v = g.accessors[i], g.bufferViews[g.accessors[i].bufferView]
+        return np.frombuffer(blob, dt, a.count * w, v.byteOffset or 0).reshape(a.count, w)
+
+    return g, acc
+
+
+@pytest.mark.parametrize("ext", [".glb", ".gltf"])
+def test_a_seamed_cube_smooths_as_one_surface_and_keeps_its_scene(tmp_path, capsys, ext):
+    from shapeflow.cli import main
+
+    g, pos, uv, idx = cube_with_seams()
+    src = tmp_path / f"cube{ext}"
+    if ext == ".glb":
+        g.save_binary(str(src))
+    else:
+        g.convert_buffers(pygltflib.BufferFormat.DATAURI)
+        g.save_json(str(src))
+    m = sf.load(src)
+    assert m.n_vertices == 24 and m.n_faces == 12 and sf.weld(m).n_vertices == 8
+    out = tmp_path / f"out{ext}"
+    assert main(["smooth", str(src), str(out), "--strength", "0.5"]) == 0
+    assert "welded to 8" in capsys.readouterr().err
+    g2, acc = _read(out)
+    assert g2.materials[0].name == "wood" and g2.nodes[0].name == "Crate"
+    assert g2.meshes[0].primitives[0].material == 0
+    new = acc(0, "<f4", 3).astype(np.float64)
+    np.testing.assert_array_equal(acc(2, "<f4", 2), uv)                   # UVs unchanged
+    np.testing.assert_array_equal(acc(3, "<u2", 1).reshape(-1), idx)      # triangles unchanged
+    # the seam copies of each cube corner moved together, as the welded cube's corner did
+    w = sf.weld(m)
+    ref = sf.flow(w, 0.5).vertices[w.weld_map]
+    np.testing.assert_allclose(new, ref, atol=1e-6)
+    for c in range(8):
+        copies = np.flatnonzero(w.weld_map == c)
+        assert np.abs(new[copies] - new[copies[0]]).max() == 0.0
+    assert np.abs(new).max() < 1.0                                         # it shrank (smoothing a cube)
+    # normals: unit, from the new surface (the welded cube is symmetric: they point outwards)
+    n = acc(1, "<f4", 3)
+    np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-6)
+    assert (np.einsum("ij,ij->i", n, new) > 0).all()
+
+
+def test_a_new_document_for_changed_faces(tmp_path):
+    g, *_ = cube_with_seams()
+    src = tmp_path / "cube.glb"
+    g.save_binary(str(src))
+    m = sf.load(src)
+    with pytest.warns(sf.DataLossWarning, match="faces changed"):
+        sf.save(tmp_path / "sub.glb", sf.subdivide(sf.weld(m), 1))
+    back = sf.load(tmp_path / "sub.glb")
+    assert back.n_faces == 2 * sf.weld(m).n_corners     # a quad per parent corner, written as two triangles
+
+
+def test_not_a_gltf_file_is_a_mesh_error(tmp_path):
+    p = tmp_path / "x.glb"
+    p.write_bytes(b"glTF\x02\x00\x00\x00garbage")
+    with pytest.raises(sf.MeshError, match="x.glb"):
+        sf.load(p)
