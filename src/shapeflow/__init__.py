@@ -28,7 +28,7 @@ _LAZY = {
     "load": "io", "save": "io", "load_weights": "io", "save_weights": "io",
     "load_example": "examples", "example_path": "examples",
     "subdivide": "subdivision", "subdivision_matrix": "subdivision",
-    "weld": "geometry.weld", "unweld": "geometry.weld",
+    "weld": "geometry.weld", "unweld": "geometry.weld", "as_mesh": "mesh.convert",
     "family": "flow", "family_meshes": "flow",
     "render": "rendering", "render_meshes": "rendering",
     "Brush": "sculpt", "InflateBrush": "sculpt",

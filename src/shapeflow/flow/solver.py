@@ -13,6 +13,7 @@ from ..geometry.measures import pow2_exponent
 from ..geometry.normals import has_normals, refresh_normals
 from ..linalg.spd import DEFAULT_RTOL
 from ..mesh import Mesh
+from ..mesh.convert import as_mesh
 from ..operators.pattern import check_scheme
 from ..types import Axes, Weights
 from .fixed import fixed_steps
@@ -45,8 +46,7 @@ class FlowSolver:
     def __init__(self, mesh: Mesh, *, lam_border: float = 0.0, normalized: bool = True,
                  weights: Weights = None, invert_weights: bool = False, scheme: str | None = None,
                  compat: str | None = None, solver: str = "auto", rtol: float = DEFAULT_RTOL):
-        if not isinstance(mesh, Mesh):
-            raise ParameterError(f"expected a shapeflow.Mesh, got {type(mesh).__name__}")
+        mesh = as_mesh(mesh)
         if not isinstance(compat, (str, type(None))) or compat not in COMPAT_MODES:
             raise ParameterError(f"unknown compat mode {compat!r}; choose 'blender' or None (paper)")
         self.blender = compat == "blender"

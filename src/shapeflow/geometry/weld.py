@@ -24,6 +24,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..mesh import Mesh
 from ..mesh.attributes import Indexed, Labels
+from ..mesh.convert import as_mesh
 from .normals import refresh_normals
 
 __all__ = ["WELD_TOL", "weld", "weld_map", "unweld", "needs_weld"]
@@ -74,8 +75,7 @@ def weld(mesh: Mesh, *, tol: float = WELD_TOL) -> Mesh:
     each input vertex and ``result.weld_faces`` the input face of each welded face (for
     :func:`unweld`).
     """
-    if not isinstance(mesh, Mesh):
-        raise ParameterError(f"weld() needs a shapeflow.Mesh, got {type(mesh).__name__}")
+    mesh = as_mesh(mesh)
     try:
         tol = float(tol)
     except (TypeError, ValueError):

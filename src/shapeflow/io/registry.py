@@ -9,6 +9,7 @@ from typing import Callable
 from .. import params
 from ..errors import MeshError, ParameterError
 from ..mesh import Mesh
+from ..mesh.convert import as_mesh
 from ..types import PathLike
 from .atomic import as_path, atomic_write, read_bytes
 
@@ -102,8 +103,7 @@ def save(path: PathLike, mesh: Mesh, *, format: str | None = None, binary: bool 
     ``OSError``) naming ``path``; nothing is left behind and an existing file
     is not touched.  A symbolic link is followed: its target is replaced.
     """
-    if not isinstance(mesh, Mesh):
-        raise ParameterError(f"save() needs a shapeflow.Mesh, got {type(mesh).__name__}")
+    mesh = as_mesh(mesh, "save()'s mesh")
     if binary is not None:
         binary = params.flag("binary", binary)
     force = params.flag("force", force)

@@ -127,6 +127,59 @@ class Mesh:
             )
         return cls(vertices, None, _csr=(idx, offsets), **kw)
 
+    # --- other libraries' objects (shapeflow.mesh.convert, shapeflow.interop) -------------------------
+    @classmethod
+    def from_trimesh(cls, obj: object) -> "Mesh":
+        """A mesh from a ``trimesh.Trimesh`` (vertex colours as the attribute ``color``)."""
+        from .convert import as_mesh
+
+        return as_mesh(obj)
+
+    @classmethod
+    def from_pyvista(cls, obj: object) -> "Mesh":
+        """A mesh from a ``pyvista.PolyData`` (quads and n-gons kept; point data as attributes)."""
+        from .convert import as_mesh
+
+        return as_mesh(obj)
+
+    @classmethod
+    def from_meshio(cls, obj: object) -> "Mesh":
+        """A mesh from a ``meshio.Mesh`` (triangle, quad and polygon blocks; point data as attributes)."""
+        from .convert import as_mesh
+
+        return as_mesh(obj)
+
+    @classmethod
+    def from_open3d(cls, obj: object) -> "Mesh":
+        """A mesh from an ``open3d.geometry.TriangleMesh`` (vertex colours as ``color``)."""
+        from .convert import as_mesh
+
+        return as_mesh(obj)
+
+    def to_trimesh(self) -> object:
+        """:func:`shapeflow.interop.to_trimesh`."""
+        from ..interop import to_trimesh
+
+        return to_trimesh(self)
+
+    def to_pyvista(self) -> object:
+        """:func:`shapeflow.interop.to_pyvista`."""
+        from ..interop import to_pyvista
+
+        return to_pyvista(self)
+
+    def to_meshio(self) -> object:
+        """:func:`shapeflow.interop.to_meshio`."""
+        from ..interop import to_meshio
+
+        return to_meshio(self)
+
+    def to_open3d(self) -> object:
+        """:func:`shapeflow.interop.to_open3d`."""
+        from ..interop import to_open3d
+
+        return to_open3d(self)
+
     def with_vertices(self, vertices: ArrayLike, *, attributes: Mapping | None = None,
                       keep_attributes: bool = True) -> "Mesh":
         """A mesh with the same faces (and shared cached topology), new positions."""

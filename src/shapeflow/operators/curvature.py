@@ -9,6 +9,7 @@ from ..geometry.cotangent import triangle_cotangents
 from ..geometry.measures import pow2_exponent
 from ..geometry.normals import vertex_normals
 from ..mesh import Mesh
+from ..mesh.convert import as_mesh
 from .pattern import OperatorPattern
 from .weights import assemble
 
@@ -33,6 +34,7 @@ def vertex_areas(mesh: Mesh, kind: str = "ring", scheme: str = "tqlbo") -> np.nd
         Meyer et al.'s mixed Voronoi area, averaged over the operator's
         triangles with their weights (exactly Meyer's on triangle meshes).
     """
+    mesh = as_mesh(mesh)
     pattern, _, _, ring, _, _ = assemble(mesh, scheme, "relative")
     return areas_from(mesh, pattern, ring, kind)
 
@@ -73,6 +75,7 @@ def mean_curvature_normal(mesh: Mesh, *, area: str = "ring", scheme: str = "tqlb
     Vertices with zero area get 0; values at boundary vertices are not
     curvature (no closed ring).
     """
+    mesh = as_mesh(mesh)
     k = pow2_exponent(mesh.vertices)
     if k:   # H·n scales as 1/size: computed on an exact power-of-two copy (its areas stay in range)
         return np.ldexp(mean_curvature_normal(mesh.with_vertices(np.ldexp(mesh.vertices, -k)), area=area,
@@ -93,5 +96,6 @@ def mean_curvature(mesh: Mesh, *, area: str = "ring", scheme: str = "tqlbo") -> 
     closed outward-oriented surface: +1/r on a sphere).  See
     :func:`mean_curvature_normal` for the area choices.
     """
+    mesh = as_mesh(mesh)
     hn = mean_curvature_normal(mesh, area=area, scheme=scheme)
     return np.einsum("ij,ij->i", hn, vertex_normals(mesh))

@@ -7,6 +7,7 @@ import scipy.sparse as sp
 
 from .. import accel
 from ..mesh import Mesh
+from ..mesh.convert import as_mesh
 from .weights import assemble
 
 __all__ = ["laplacian"]
@@ -23,6 +24,7 @@ def laplacian(mesh: Mesh, normalized: bool = True, scheme: str = "tqlbo", *,
     are zero.  ``L @ V`` is zero at interior vertices of planar meshes (linear
     precision) and points away from the neighbour average.
     """
+    mesh = as_mesh(mesh)
     pattern, pw, deg, ring, _, _ = assemble(mesh, scheme, thresholds)
     K = pattern.matrix(deg, -pw)
     denom = deg if normalized else 2.0 * ring

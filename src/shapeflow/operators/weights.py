@@ -24,6 +24,7 @@ from ..errors import ParameterError
 from ..geometry.cotangent import corner_cotangents, triangle_cotangents
 from ..geometry.measures import pow2_exponent
 from ..mesh import Mesh
+from ..mesh.convert import as_mesh
 from .pattern import check_scheme, operator_pattern
 
 __all__ = ["THRESHOLDS", "REL_EDGE_TOL", "REL_SHAPE_TOL", "BLENDER_MIN", "FLT_EPSILON", "CotanWeights",
@@ -193,6 +194,7 @@ def cotan_weights(mesh: Mesh, scheme: str = "tqlbo", *, thresholds: str = "relat
     >>> round(W[0, 1], 12), round(W[0, 2], 12), A.tolist()
     (1.0, 0.0, [0.75, 0.75, 0.75, 0.75])
     """
+    mesh = as_mesh(mesh)
     pattern, pw, deg, ring, locked, n_bad = assemble(mesh, scheme, thresholds)
     K = pattern.matrix(np.zeros(mesh.n_vertices), pw, copy_pattern=True)
     K.sum_duplicates()   # a chord shared by two faces becomes one entry

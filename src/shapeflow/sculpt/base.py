@@ -15,6 +15,7 @@ from ..errors import ParameterError
 from ..flow.options import resolve_weights
 from ..geometry.normals import refresh_normals
 from ..mesh import Mesh
+from ..mesh.convert import as_mesh
 from ..types import Falloff, Weights
 from .grid import CellGrid, sq_norms
 from .numbering import locality_order, renumbered
@@ -74,8 +75,7 @@ class BrushBase:
 
     def __init__(self, mesh: Mesh, *, radius: float, falloff: Falloff = None, weights: Weights = None,
                  undo_limit: int = 64, rebuild_fraction: float = 0.15):
-        if not isinstance(mesh, Mesh):
-            raise ParameterError(f"expected a shapeflow.Mesh, got {type(mesh).__name__}")
+        mesh = as_mesh(mesh)
         self._lock = threading.RLock()   # thread model: every public call holds it (see the class docstring)
         self._mesh0 = mesh
         n = mesh.n_vertices

@@ -8,9 +8,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from .. import accel, params
-from ..errors import ParameterError
 from ..geometry.normals import refresh_normals
 from ..mesh import WEIGHT, Mesh, Topology
+from ..mesh.convert import as_mesh
 from .attributes import child_corner_attribute, child_face_attribute
 from .level import build_levels
 from .rules import (
@@ -138,8 +138,7 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
     >>> fine.n_vertices, fine.n_faces
     (98, 96)
     """
-    if not isinstance(mesh, Mesh):
-        raise ParameterError(f"expected a shapeflow Mesh, got {type(mesh).__name__}")
+    mesh = as_mesh(mesh)
     levels = check_levels(levels)
     check_output_size(mesh, levels)
     scheme = check_choice("scheme", scheme, SCHEMES)

@@ -7,6 +7,7 @@ import scipy.sparse as sp
 
 from ..errors import ParameterError
 from ..mesh import Mesh, Topology
+from ..mesh.convert import as_mesh
 
 __all__ = ["SCHEMES", "BOUNDARY_RULES", "WEIGHT_RULES", "EDGE_ORDERS", "INF", "SMOOTH", "DART", "CREASE", "CORNER",
            "BYTES_PER_FACE", "check_choice", "check_levels", "check_output_size", "check_threads", "as_topology",
@@ -71,6 +72,8 @@ def check_threads(threads) -> int:
 
 
 def as_topology(mesh) -> Topology:
+    if not isinstance(mesh, Topology):
+        mesh = as_mesh(mesh)
     if isinstance(mesh, Mesh):
         return mesh.topology
     if isinstance(mesh, Topology):

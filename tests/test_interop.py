@@ -1,0 +1,89 @@
+"""Other libraries' meshes in, shapeflow meshes out, and back: trimesh, pyvista, meshio."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+import shapeflow as sf
+from shapeflow.errors import DataLossWarning
+
+trimesh = pytest.importorskip("trimesh", reason="trimesh (a test dependency) is not installed")
+pv = pytest.importorskip("pyvista", reason="pyvista (a test dependency) is not installed")
+meshio = pytest.importorskip("meshio", reason="meshio (a test dependency) is not installed")
+
+
+@pytest.fixture
+def spot():
+    return sf.load_example("spot_cage")       # triangles, quads and pentagons
+
+
+def faces(mesh):
+    return [list(map(int, f)) for f in mesh.faces_as_lists()]
+
+
+def test_pyvista_round_trip_keeps_ngons_and_point_data(spot):
+    w = np.linspace(0, 1, spot.n_vertices)
+    poly = spot.with_weights(w).to_pyvista()
+    assert poly.n_cells == spot.n_faces and poly.n_points == spot.n_vertices
+    np.testing.assert_array_equal(poly.point_data["weight"], w)
+    back = sf.Mesh.from_pyvista(poly)
+    assert faces(back) == faces(spot) and np.array_equal(back.vertices, spot.vertices)
+    # every call takes the pyvista object as it is, and agrees with the shapeflow mesh
+    np.testing.assert_array_equal(sf.flow(poly, -5.0, weights="weight").vertices,
+                                  sf.flow(spot, -5.0, weights=w).vertices)
+
+
+def test_meshio_round_trip_groups_by_size(spot):
+    with pytest.warns(DataLossWarning, match="face order"):
+        mm = spot.to_meshio()
+    kinds = {b.type: len(b.data) for b in mm.cells}
+    assert kinds == {{3: "triangle", 4: "quad"}.get(k, "polygon"): c for k, c in spot.face_count_by_size().items()}
+    back = sf.Mesh.from_meshio(mm)
+    assert sorted(map(tuple, faces(back))) == sorted(map(tuple, faces(spot)))
+    assert np.allclose(sf.laplacian(mm).diagonal(), sf.laplacian(back).diagonal())
+
+
+def test_trimesh_in_and_out(spot):
+    with pytest.warns(DataLossWarning, match="fans"):
+        tm = spot.to_trimesh()
+    assert len(tm.faces) == sum(k - 2 for k in spot.face_sizes)        # fans: k - 2 triangles per face
+    assert np.array_equal(tm.vertices, spot.vertices)                   # no merging or reordering
+    m = sf.Mesh.from_trimesh(tm)
+    out = sf.smooth(tm, 2.0)
+    np.testing.assert_array_equal(out.vertices, sf.smooth(m, 2.0).vertices)
+    # an independent check of the triangles trimesh holds: its area is that of the fans, summed here
+    area = 0.0
+    for f in faces(spot):
+        p = spot.vertices[f]
+        area += sum(0.5 * np.linalg.norm(np.cross(p[k] - p[0], p[k + 1] - p[0])) for k in range(1, len(f) - 1))
+    assert abs(tm.area - area) < 1e-12 * area
+
+
+def test_objects_with_vertices_and_faces_are_accepted_everywhere(spot):
+    class Plain:
+        vertices = spot.vertices
+        faces = spot.faces_as_lists()
+
+    tri = sf.Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]], [[0, 1, 2]])
+
+    class Triangles:                           # open3d's names
+        vertices = tri.vertices
+        triangles = np.array([[0, 1, 2]])
+
+    for obj in (Plain(),):
+        assert sf.flow(obj, -1.0).n_faces == spot.n_faces
+        assert sf.subdivide(obj).n_faces == spot.n_corners
+        assert sf.Brush(obj, radius=0.2).mesh.n_vertices == spot.n_vertices
+    assert sf.cotan_weights(Triangles()).W.shape == (3, 3)
+    with pytest.raises(sf.ParameterError, match="vertices and faces"):
+        sf.flow(object(), -1.0)
+
+
+def test_a_cli_like_trip_through_files_keeps_the_library_objects_honest(tmp_path, spot):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataLossWarning)
+        sf.save(tmp_path / "a.ply", spot.to_pyvista())
+    assert faces(sf.load(tmp_path / "a.ply")) == faces(spot)
