@@ -45,9 +45,15 @@ def resolve_output(input_arg: str, output: str, force: bool, *others: str | None
     if not input_arg.startswith("example:") and os.path.exists(output) and os.path.exists(input_arg) \
             and os.path.samefile(input_arg, output) and not force:
         raise ParameterError(f"output {output!r} is the input file; pass --force to overwrite it")
+    from ..io.registry import format_for
+
     for path in (output, *others):
         if path:
             output_target(path, force=force)
+    from ..io.weights import WEIGHT_EXTENSIONS
+
+    if os.path.splitext(output)[1].lower() not in WEIGHT_EXTENSIONS:   # values files (curvature) aside,
+        format_for(output, None)                                       # an unknown format fails now
     return output
 
 
@@ -123,3 +129,52 @@ def welded_for_operator(mesh, kw: dict, command: str, quiet: bool):
                f"(seams or a triangle soup): welded to {welded.n_vertices} for the operator, "
                "the result written on the input's layout")
     return welded, kw, (lambda result: unweld(result, mesh, welded))
+
+
+#: from this |λ| on, the result is checked for the limits of the flow (collapse, rescaling)
+STRONG_LAMBDA = 1e3
+
+
+def warn_degenerate_result(command: str, lam: float, before, after) -> None:
+    """A one-line warning when a very large λ gave a result that says little: smoothing that
+    collapsed the model towards a point, or enhancement that only rescaled it."""
+    import numpy as np
+
+    V, X = before.vertices, after.vertices
+    moved = float(np.linalg.norm(X - V))
+    if moved == 0.0 or V.shape[0] < 4 or abs(lam) < STRONG_LAMBDA:
+        return
+    c = V.mean(axis=0)
+    if lam > 0 and after.diagonal < 0.05 * before.diagonal:
+        eprint(f"shapeflow {command}: warning: λ={lam:g} collapsed the model to {after.diagonal / before.diagonal:.1%} "
+               "of its size (the limit of strong smoothing is the mean position); try a smaller λ")
+        return
+    D = V - c
+    s = float(np.einsum("ij,ij->", X - c, D) / max(np.einsum("ij,ij->", D, D), np.finfo(float).tiny))
+    rest = float(np.linalg.norm(X - c - s * D))
+    if lam < 0 and rest < 0.05 * moved:
+        eprint(f"shapeflow {command}: warning: λ={lam:g} mostly rescaled the model (by {s:.3g}; "
+               f"{rest / moved:.1%} of the motion is a change of shape); try a smaller |λ|")
+
+
+def note_compiling(consumers: tuple, size: int, *, min_size: int | None = None, quiet: bool = False) -> bool:
+    """Say once that the compiled kernels are being compiled (the first run on this machine takes
+    tens of seconds; later runs load them from numba's cache).  Returns whether it said so."""
+    from pathlib import Path
+
+    from .. import accel
+
+    if quiet or not accel.current().uses_compiled(size, min_size=min_size):
+        return False
+    import importlib
+
+    missing = []
+    for name in consumers:
+        mod = importlib.import_module(f"shapeflow.{name}.compiled")
+        cache = Path(mod.__file__).parent / "__pycache__"
+        if not any(cache.glob("compiled.*.nbi")):
+            missing.append(name)
+    if missing:
+        eprint("shapeflow: compiling the fast kernels (first run on this machine only; later runs load them "
+               "from numba's cache)")
+    return bool(missing)

@@ -26,7 +26,7 @@ from .flow import add_flow_options, flow_kwargs
 #: bytes of positions the family is solved in batches (in order of |λ|)
 BATCH_BYTES = 512 * 2 ** 20
 MAX_MEMBERS = 100_000
-FORMATS = ("ply", "obj", "off")
+FORMATS = ("ply", "obj", "off", "stl", "glb", "gltf")
 
 
 def register(sub) -> None:
@@ -42,6 +42,8 @@ def register(sub) -> None:
     _retitle(p, "output", metavar="OUTDIR",
              help="directory for the members (created if missing); files NAME_INDEX_lamVALUE.EXT")
     _retitle(p, "force", help="overwrite member files that already exist in OUTDIR")
+    _retitle(p, "image", help="also draw a strip of up to 12 members (first and last included), blue to red "
+                              "by λ (needs shapeflow[render])")
     g = p.add_argument_group("the λ of the members")
     g.add_argument("--from", dest="lam_from", type=float, default=None, metavar="A",
                    help="first λ (default 0 with --to/--step)")
@@ -53,7 +55,7 @@ def register(sub) -> None:
                    help="explicit comma-separated list of λ instead of --from/--to/--step")
     p.add_argument("--name", default=None, help="file name prefix (default: the input's name)")
     p.add_argument("--format", choices=FORMATS, default=None,
-                   help="output format (default: the input's if OBJ/PLY/OFF, else ply)")
+                   help="output format (default: the input's, else ply)")
     p.add_argument("--strategy", choices=["auto", "multishift", "separate"], default="auto",
                    help="auto: shared solve where the shift structure holds (default); multishift: "
                         "insist on it; separate: one solve per λ")

@@ -6,7 +6,16 @@ import os
 import time
 
 from ..errors import ParameterError
-from .common import eprint, load_mesh_arg, progress_callback, resolve_output, save_mesh, welded_for_operator
+from .common import (
+    eprint,
+    load_mesh_arg,
+    note_compiling,
+    progress_callback,
+    resolve_output,
+    save_mesh,
+    warn_degenerate_result,
+    welded_for_operator,
+)
 from .images import add_image_options
 
 
@@ -89,11 +98,13 @@ def run(args) -> int:
     t0 = time.perf_counter()
     mesh = load_mesh_arg(args.input)
     operand, kw, restore = welded_for_operator(mesh, flow_kwargs(args, mesh), args.command, args.quiet)
+    note_compiling(("mesh", "operators", "flow", "linalg"), operand.n_vertices, quiet=args.quiet)
     with progress_callback(args.iterations, "flow", quiet=args.quiet) as cb:
         result = flow(operand, lam, progress=cb, **kw)
     report = result.report
     result = restore(result)
     result.report = report
+    warn_degenerate_result(args.command, lam, mesh, result)
     save_mesh(out_path, result, args.force)
     if not args.quiet:
         r = report

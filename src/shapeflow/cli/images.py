@@ -42,8 +42,9 @@ def before_after(path: str, before, after, *, label_before: str = "input", label
 def add_image_options(parser, help: str = "also draw input and result side by side (needs shapeflow[render])") -> None:
     """``--image PNG`` and ``--image-up y|z`` (the model's up axis in the picture)."""
     parser.add_argument("--image", metavar="PNG", help=help)
-    parser.add_argument("--image-up", choices=["y", "z"], default="y",
-                        help="up axis of the model in the picture (default y; z for Blender/CAD exports)")
+    parser.add_argument("--image-up", "--up", dest="image_up", choices=["y", "z"], default="y",
+                        help="up axis of the model in the picture (default y; z for Blender/CAD exports); "
+                             "--up is the same option, as in 'shapeflow render'")
 
 
 def flow_image(args, before, after, lam: float) -> None:
