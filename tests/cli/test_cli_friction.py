@@ -60,3 +60,12 @@ def test_no_compile_notice_when_the_kernels_are_off(capsys):
     with accel.use(kernels="off"):
         assert note_compiling(("sculpt",), 10**6) is False
     assert capsys.readouterr().err == ""
+
+
+def test_the_up_axis_follows_the_file_convention():
+    from shapeflow.cli.images import up_axis
+
+    tri = sf.Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]], [[0, 1, 2]])
+    stl = tri.with_metadata(stl={"name": "part"})
+    assert up_axis("auto", tri) == "y" and up_axis("auto", stl) == "z"
+    assert up_axis("y", stl) == "y" and up_axis("z", tri) == "z"

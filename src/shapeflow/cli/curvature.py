@@ -28,7 +28,8 @@ def register(sub) -> None:
     p.add_argument("--image", metavar="PNG",
                    help="also render the mesh coloured by curvature (needs shapeflow[render])")
     p.add_argument("--view", default="iso", help="view for --image (front, side, top, iso, AZ,EL; default iso)")
-    p.add_argument("--up", choices=["y", "z"], default="y", help="the model's up axis for --image (default y)")
+    p.add_argument("--up", choices=["auto", "y", "z"], default="auto",
+                   help="the model's up axis for --image (default auto: z for STL, y otherwise)")
     p.add_argument("--size", default="800x600", metavar="WxH", help="size of --image (default 800x600)")
     p.add_argument("--force", action="store_true",
                    help="allow OUT to be the input file, or a read-only file (overwrite it)")
@@ -61,8 +62,9 @@ def run(args) -> int:
         write_values(out, h, args.force)
     if args.image:
         from ..rendering import render
+        from .images import up_axis
 
-        render(result, args.image, color="curvature", view=args.view, up=args.up, size=size,
+        render(result, args.image, color="curvature", view=args.view, up=up_axis(args.up, mesh), size=size,
                label=f"mean curvature ({args.area} area)")
     if not args.quiet:
         bnd = mesh.topology.boundary_vertex_mask

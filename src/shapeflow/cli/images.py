@@ -25,7 +25,7 @@ def check_picture_path(path: str) -> str:
 
 
 def before_after(path: str, before, after, *, label_before: str = "input", label_after: str = "result",
-                 color="curvature", edges=False, shading="smooth", view=VIEW, up: str = "y",
+                 color="curvature", edges=False, shading="smooth", view=VIEW, up: str = "auto",
                  quiet: bool = False) -> None:
     """Write ``before`` and ``after`` side by side with one camera (and one colour range).
 
@@ -34,17 +34,26 @@ def before_after(path: str, before, after, *, label_before: str = "input", label
 
     check_picture_path(path)
     render_meshes([before, after], path, labels=[label_before, label_after], color=color, edges=edges,
-                  shading=shading, view=view, up=up, size=PANEL)
+                  shading=shading, view=view, up=up_axis(up, before), size=PANEL)
     if not quiet:
         eprint(f"image -> {path}")
+
+
+def up_axis(choice: str, mesh) -> str:
+    """The up axis for a picture: ``y`` or ``z`` as given, or for ``auto`` the file's convention
+    (STL, the 3D-printing format: z; OBJ, PLY, OFF and glTF: y)."""
+    if choice != "auto":
+        return choice
+    return "z" if "stl" in getattr(mesh, "metadata", {}) else "y"
 
 
 def add_image_options(parser, help: str = "also draw input and result side by side (needs shapeflow[render])") -> None:
     """``--image PNG`` and ``--image-up y|z`` (the model's up axis in the picture)."""
     parser.add_argument("--image", metavar="PNG", help=help)
-    parser.add_argument("--image-up", "--up", dest="image_up", choices=["y", "z"], default="y",
-                        help="up axis of the model in the picture (default y; z for Blender/CAD exports); "
-                             "--up is the same option, as in 'shapeflow render'")
+    parser.add_argument("--image-up", "--up", dest="image_up", choices=["auto", "y", "z"], default="auto",
+                        help="up axis of the model in the picture (default auto: the file's convention, z for "
+                             "STL and y otherwise; z for Blender/CAD exports); --up is the same option, as in "
+                             "'shapeflow render'")
 
 
 def flow_image(args, before, after, lam: float) -> None:
@@ -53,7 +62,7 @@ def flow_image(args, before, after, lam: float) -> None:
     n = getattr(args, "iterations", 1)
     label = f"{what}, λ={lam:g}" + (f", {n} iterations" if n != 1 else "")
     before_after(args.image, before, after, label_before="input", label_after=label,
-                 up=getattr(args, "image_up", "y"), quiet=getattr(args, "quiet", False))
+                 up=getattr(args, "image_up", "auto"), quiet=getattr(args, "quiet", False))
 
 
 def subdivide_image(args, before, after) -> None:
@@ -62,11 +71,11 @@ def subdivide_image(args, before, after) -> None:
     scheme = getattr(args, "scheme", "catmull-clark")
     before_after(args.image, before, after, label_before=f"input ({before.n_faces} faces)",
                  label_after=f"{scheme}, {levels} level{'s' if levels != 1 else ''} ({after.n_faces} faces)",
-                 color="none", edges=True, shading=["flat", "smooth"], up=getattr(args, "image_up", "y"),
+                 color="none", edges=True, shading=["flat", "smooth"], up=getattr(args, "image_up", "auto"),
                  quiet=getattr(args, "quiet", False))
 
 
-def family_image(path: str, meshes, lams, *, view=VIEW, up: str = "y", max_panels: int = 12,
+def family_image(path: str, meshes, lams, *, view=VIEW, up: str = "auto", max_panels: int = 12,
                  quiet: bool = False) -> None:
     """Figure 1 of the paper: a family of shapes in one strip, coloured blue (first) → red (last).
 
@@ -84,6 +93,6 @@ def family_image(path: str, meshes, lams, *, view=VIEW, up: str = "y", max_panel
     rows = 1 if len(idx) <= 6 else 2
     render_meshes([meshes[i] for i in idx], path, colors=[cols[i] for i in idx],
                   labels=[f"λ={lams[i] + 0.0:g}" for i in idx], grid=(rows, int(np.ceil(len(idx) / rows))),
-                  view=view, up=up, size=(260, 280))
+                  view=view, up=up_axis(up, meshes[0]), size=(260, 280))
     if not quiet:
         eprint(f"image -> {path}")

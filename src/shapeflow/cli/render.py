@@ -23,7 +23,8 @@ def register(sub) -> None:
                         "or a colour such as '#4477aa' (default curvature)")
     p.add_argument("--view", "-v", default="front", metavar="VIEW",
                    help="front, side, back, top, bottom, iso, or AZIMUTH,ELEVATION in degrees (default front)")
-    p.add_argument("--up", choices=["y", "z"], default="y", help="the model's up axis (default y)")
+    p.add_argument("--up", choices=["auto", "y", "z"], default="auto",
+                   help="the model's up axis (default auto: the file's convention, z for STL, y otherwise)")
     p.add_argument("--edges", "-e", action="store_true", help="draw polygon edges (quads as quads)")
     p.add_argument("--size", "-s", default=None, metavar="WxH",
                    help="picture size for one mesh (default 800x600), size of each panel for several "
@@ -117,7 +118,9 @@ def run(args) -> int:
     meshes = [load_mesh_arg(a) for a in inputs]
     if args.labels is not None and len(args.labels) != len(meshes):
         raise ParameterError(f"--labels: {len(args.labels)} titles for {len(meshes)} meshes")
-    common = dict(color=color, reference=reference, view=args.view, up=args.up, edges=args.edges,
+    from .images import up_axis
+
+    common = dict(color=color, reference=reference, view=args.view, up=up_axis(args.up, meshes[0]), edges=args.edges,
                   shading=args.shading, colorbar=not args.no_colorbar, cmap=args.cmap, clim=clim)
     if len(meshes) == 1 and grid is None:
         size = parse_size(args.size) if args.size else (800, 600)

@@ -55,7 +55,7 @@ def read_stl(data: bytes, name: str) -> Mesh:
     m = V.shape[0] // 3
     try:
         return Mesh.from_csr(V, np.full(m, 3), np.arange(3 * m), face_attributes=face,
-                             metadata={"stl": meta} if meta else None)
+                             metadata={"stl": meta})   # also marks the file as STL (z up)
     except MeshError as exc:
         raise MeshError(f"{name}: {exc}") from None
 
