@@ -9,7 +9,7 @@ import sys
 import numpy as np
 import pytest
 from conftest import MESHES, requires_shared
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from meshgen import grid, icosphere, random_rotation
 
@@ -98,6 +98,12 @@ def test_flow_properties(mesh, opts, wseed, scale):
 @given(mesh=meshes, lam=st.floats(-300, 300, allow_nan=False), lam_b=st.floats(-5, 5, allow_nan=False),
        rseed=st.integers(0, 1000), iterations=st.integers(1, 2), preserve_volume=st.booleans())
 def test_flow_rigid_motion_equivariance(mesh, lam, lam_b, rseed, iterations, preserve_volume):
+    if preserve_volume:
+        # volume preservation rescales by (V_before / V_after)^(1/3): on a near-flat open surface the
+        # enclosed volume is of the order of the rounding of the moved copy's coordinates, so the
+        # two runs may not agree to 1e-7; such surfaces are left to the degenerate-geometry tests
+        area = float(np.linalg.norm(sf.geometry.face_vector_areas(mesh), axis=1).sum())
+        assume(abs(sf.geometry.signed_volume(mesh)) > 1e-6 * area * mesh.diagonal)
     R = random_rotation(rseed)
     t = np.random.default_rng(rseed).uniform(-10, 10, 3)
     moved = mesh.with_vertices(mesh.vertices @ R.T + t)
