@@ -86,3 +86,16 @@ def test_the_command_welds_a_soup_and_says_so(tmp_path, capsys):
     np.testing.assert_allclose(out.vertices, sf.flow(m, -5.0).vertices[m.face_indices], rtol=0, atol=1e-12)
     assert main(["info", str(tmp_path / "soup.ply")]) == 0
     assert f"{soup.n_vertices - m.n_vertices} vertices share a position" in capsys.readouterr().out
+
+
+def test_subdividing_a_soup_welds_it_first(tmp_path, capsys):
+    from shapeflow.cli import main
+
+    m = sf.load_example("spot_cage")
+    sf.save(tmp_path / "soup.ply", soup_of(m))
+    assert main(["subdivide", str(tmp_path / "soup.ply"), str(tmp_path / "sub.ply")]) == 0
+    assert f"welded to {m.n_vertices} before subdividing" in capsys.readouterr().err
+    out, ref = sf.load(tmp_path / "sub.ply"), sf.subdivide(m, 1)
+    # one connected surface, as the welded cage gives (not separate patches): same points, same faces
+    assert out.n_vertices == ref.n_vertices and out.n_faces == ref.n_faces
+    np.testing.assert_allclose(np.sort(out.vertices, axis=0), np.sort(ref.vertices, axis=0), atol=1e-12)

@@ -69,6 +69,15 @@ def run(args) -> int:
     mesh = load_mesh_arg(args.input)
     if args.weights:
         mesh = mesh.with_weights(_load_weights(args.weights, mesh.n_vertices))
+    from ..geometry.weld import needs_weld, weld
+
+    if needs_weld(mesh):   # a soup or split seams would subdivide as separate patches
+        welded = weld(mesh)
+        if not getattr(args, "quiet", False):
+            eprint(f"shapeflow subdivide: {mesh.n_vertices - welded.n_vertices} vertices coincide with others "
+                   f"(seams or a triangle soup): welded to {welded.n_vertices} before subdividing "
+                   "(corner attributes such as UVs keep their seams)")
+        mesh = welded
     t0 = time.perf_counter()
     with progress_callback(args.levels, "levels") as cb:
         out = subdivide(mesh, args.levels, scheme=args.scheme, boundary=args.boundary,
