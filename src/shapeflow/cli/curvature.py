@@ -62,9 +62,10 @@ def run(args) -> int:
         write_values(out, h, args.force)
     if args.image:
         from ..rendering import render
-        from .images import up_axis
+        from .images import facing, up_axis
 
-        render(result, args.image, color="curvature", view=args.view, up=up_axis(args.up, mesh), size=size,
+        up = up_axis(args.up, mesh)
+        render(result, args.image, color="curvature", view=facing(args.view, mesh, up), up=up, size=size,
                label=f"mean curvature ({args.area} area)")
     if not args.quiet:
         bnd = mesh.topology.boundary_vertex_mask

@@ -118,9 +118,10 @@ def run(args) -> int:
     meshes = [load_mesh_arg(a) for a in inputs]
     if args.labels is not None and len(args.labels) != len(meshes):
         raise ParameterError(f"--labels: {len(args.labels)} titles for {len(meshes)} meshes")
-    from .images import up_axis
+    from .images import facing, up_axis
 
-    common = dict(color=color, reference=reference, view=args.view, up=up_axis(args.up, meshes[0]), edges=args.edges,
+    up = up_axis(args.up, meshes[0])
+    common = dict(color=color, reference=reference, view=facing(args.view, meshes[0], up), up=up, edges=args.edges,
                   shading=args.shading, colorbar=not args.no_colorbar, cmap=args.cmap, clim=clim)
     if len(meshes) == 1 and grid is None:
         size = parse_size(args.size) if args.size else (800, 600)
