@@ -110,3 +110,35 @@ def test_not_a_gltf_file_is_a_mesh_error(tmp_path):
     p.write_bytes(b"glTF\x02\x00\x00\x00garbage")
     with pytest.raises(sf.MeshError, match="x.glb"):
         sf.load(p)
+
+
+def test_a_textured_obj_becomes_a_gltf_with_its_uvs_and_seams(tmp_path):
+    """bob (quads, vt and vn with seams) as a new glTF: one glTF vertex per distinct
+    (vertex, vt, vn) of the corners, each corner's UV and position where the OBJ had them."""
+    from conftest import MESHES
+
+    if MESHES is None:
+        pytest.skip("shared meshes not found")
+    import warnings
+
+    m = sf.load(MESHES / "bob_quad.obj")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sf.DataLossWarning)       # quads as fans, face labels
+        sf.save(tmp_path / "bob.glb", m)
+    g, acc = _read(tmp_path / "bob.glb")
+    prim = g.meshes[0].primitives[0]
+    pos = acc(prim.attributes.POSITION, "<f4", 3)
+    uvs = acc(prim.attributes.TEXCOORD_0, "<f4", 2)
+    triples = {(v, t, n) for v, t, n in zip(m.face_indices, m.corner_attributes["uv"].index,
+                                            m.corner_attributes["normal"].index)}
+    assert pos.shape[0] == len(triples)
+    back = sf.load(tmp_path / "bob.glb")
+    # the fans of each OBJ face, corner by corner: the glTF corners carry the OBJ corners' values
+    corners = []
+    for f in range(m.n_faces):
+        o, k = m.face_offsets[f], m.face_sizes[f]
+        corners += [c for j in range(1, k - 1) for c in (o, o + j, o + j + 1)]
+    corners = np.array(corners)
+    np.testing.assert_allclose(back.vertices[back.face_indices], m.vertices[m.face_indices[corners]], atol=1e-6)
+    np.testing.assert_allclose(back.corner_attributes["uv"], m.corner_attributes["uv"].expand()[corners], atol=1e-7)
+    assert uvs.shape[0] == pos.shape[0]
