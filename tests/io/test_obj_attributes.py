@@ -242,3 +242,18 @@ def test_the_command_line_names_what_it_cannot_keep(sample, tmp_path, capsys):
         back, m = sf.load(tmp_path / "out.obj"), sf.load(sample)
     assert back.corner_attributes["uv"] == m.corner_attributes["uv"]
     assert back.face_attributes["material"] == m.face_attributes["material"]
+
+
+@requires_shared
+def test_concatenate_joins_attributes_and_names_what_it_cannot(tmp_path):
+    a, b = sf.load(MESHES / "bob_quad.obj"), sf.load(MESHES / "spot_quad.obj")
+    only_a = sorted(set(a.face_attributes) - set(b.face_attributes))
+    with pytest.warns(DataLossWarning, match="face attribute") as rec:
+        c = sf.mesh.concatenate([a, b])
+    assert all(f"face attribute '{k}'" in str(rec[0].message) for k in only_a)
+    np.testing.assert_array_equal(c.corner_attributes["uv"].expand(),
+                                  np.concatenate([a.corner_attributes["uv"].expand(),
+                                                  b.corner_attributes["uv"].expand()]))
+    both = sf.mesh.concatenate([a, a])
+    assert both.face_attributes["material"].values().tolist() == 2 * a.face_attributes["material"].values().tolist()
+    assert both.corner_attributes["normal"].index.max() == 2 * a.corner_attributes["normal"].values.shape[0] - 1

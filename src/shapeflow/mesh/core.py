@@ -415,7 +415,17 @@ def _same(a, b) -> bool:
 
 
 def concatenate(meshes: Iterable[Mesh]) -> Mesh:
-    """Join meshes into one (vertex and face numbering in order)."""
+    """Join meshes into one (vertex and face numbering in order).
+
+    Attributes every input has (per vertex, per corner, per face, with matching shapes) are joined
+    too: ``Indexed`` tables are stacked with their indices shifted, ``Labels`` merge their names.
+    Attributes only some inputs have are named in a :class:`~shapeflow.errors.DataLossWarning`.
+    """
+    import warnings
+
+    from ..errors import DataLossWarning
+    from .attributes import Indexed, Labels
+
     meshes = list(meshes)
     if not meshes:
         raise MeshError("nothing to concatenate")
@@ -426,4 +436,36 @@ def concatenate(meshes: Iterable[Mesh]) -> Mesh:
         idx.append(m.face_indices + base)
         sizes.append(m.face_sizes)
         base += m.n_vertices
-    return Mesh.from_csr(np.concatenate(vs), np.concatenate(sizes), np.concatenate(idx))
+    kinds = {"vertex": lambda m: m.attributes, "corner": lambda m: m.corner_attributes,
+             "face": lambda m: m.face_attributes}
+    joined, lost = {}, []
+    for kind, get in kinds.items():
+        names = dict.fromkeys(k for m in meshes for k in get(m))
+        joined[kind] = {}
+        for k in names:
+            parts = [get(m).get(k) for m in meshes]
+            try:
+                joined[kind][k] = _join(parts, Indexed, Labels)
+            except (TypeError, ValueError):
+                lost.append(f"{kind} attribute '{k}'")
+    if lost:
+        warnings.warn(DataLossWarning("concatenate: not every mesh has (or shapes alike) " + ", ".join(lost)
+                                      + "; not kept"), stacklevel=2)
+    return Mesh.from_csr(np.concatenate(vs), np.concatenate(sizes), np.concatenate(idx),
+                         attributes=joined["vertex"], corner_attributes=joined["corner"],
+                         face_attributes=joined["face"])
+
+
+def _join(parts: list, Indexed, Labels):
+    """One attribute of several meshes joined; TypeError/ValueError when they cannot be."""
+    if any(p is None for p in parts):
+        raise TypeError("missing")
+    if all(isinstance(p, Indexed) for p in parts):
+        offs = np.cumsum([0] + [p.values.shape[0] for p in parts[:-1]])
+        return Indexed(np.concatenate([p.values for p in parts]),
+                       np.concatenate([np.where(p.index >= 0, p.index + o, -1) for p, o in zip(parts, offs)]))
+    if all(isinstance(p, Labels) for p in parts):
+        return Labels.from_values(np.concatenate([p.values() for p in parts]))
+    if any(isinstance(p, (Indexed, Labels)) for p in parts):
+        raise TypeError("mixed kinds")
+    return np.concatenate([np.asarray(p) for p in parts])
