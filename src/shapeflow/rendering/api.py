@@ -10,6 +10,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from ..mesh import Mesh
+from ..mesh.convert import as_mesh
 from ..types import Color, PathLike, Size, View
 from .backend import choose_backend, colormap, pil_modules, to_rgb, vtk_classes
 from .fields import Field, color_field, robust_range
@@ -141,9 +142,8 @@ def render_meshes(meshes: Sequence[Mesh], path: PathLike | None = None, *,
     k = len(meshes)
     if k == 0:
         raise ParameterError("no mesh to render")
+    meshes = [as_mesh(m, f"item {i}") for i, m in enumerate(meshes)]
     for i, m in enumerate(meshes):
-        if not hasattr(m, "face_offsets"):
-            raise ParameterError(f"item {i} is not a shapeflow Mesh but {type(m).__name__}")
         if m.n_faces == 0:
             raise ParameterError(f"nothing to render: mesh {i} has no faces")
     w, h = check_size(size)
