@@ -106,3 +106,32 @@ def test_the_setting_is_per_thread():
     finally:
         kernels.set_default(old)
     assert kernels.current().small_pages is True and seen == [False]
+
+
+def test_thread_count_follows_the_setting_and_the_machine(monkeypatch):
+    """threads="auto": the usable cores less the other runnable tasks (at least one); an integer is
+    used as given; NUMBA_NUM_THREADS caps both."""
+    monkeypatch.delenv("NUMBA_NUM_THREADS", raising=False)
+    monkeypatch.setattr(kernels, "usable_cores", lambda: 4)
+    for others, want in ((0, 4), (1, 3), (3, 1), (9, 1)):
+        monkeypatch.setattr(kernels, "other_runnable", lambda o=others: o)
+        with kernels.use(threads="auto"):
+            assert kernels.thread_count() == want
+    with kernels.use(threads=3):
+        assert kernels.thread_count() == 3
+    monkeypatch.setenv("NUMBA_NUM_THREADS", "2")
+    with kernels.use(threads=3):
+        assert kernels.thread_count() == 2
+    with pytest.raises(sf.ParameterError, match="threads"):
+        kernels.Backend(threads=0)
+
+
+def test_a_call_restores_the_callers_numba_threads():
+    numba = pytest.importorskip("numba")
+    m = meshgen.grid(6, 5, z=lambda x, y: 0.2 * x * y)
+    numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
+    before = numba.get_num_threads()
+    seen = []
+    with kernels.use(kernels="force", threads=1):
+        sf.flow(m, -2.0, progress=lambda i, n: seen.append(numba.get_num_threads()))
+    assert seen == [1] and numba.get_num_threads() == before

@@ -22,6 +22,13 @@ Settings
     on disk after the first run).
 ``min_size``
     Smallest problem for the compiled kernels under ``"auto"`` (50,000).
+``threads``
+    Threads of the compiled parallel kernels: ``"auto"`` (default) takes the cores this process may
+    use *now* — its CPU affinity and cgroup quota, less the other runnable tasks of the machine at
+    the moment of the call (``/proc/loadavg``) — so a busy machine gets one thread instead of
+    OpenMP workers waiting for a scheduler slice at every barrier; an integer fixes it.
+    ``NUMBA_NUM_THREADS`` caps both.  The caller's own numba thread setting is restored after each
+    call.
 ``small_pages``
     Opt-in (default False).  NumPy asks Linux for transparent huge pages on
     every array of 4 MB or more.  On the virtual machines shapeflow is
@@ -70,12 +77,14 @@ import functools
 import importlib
 import logging
 import os
+import sys
 import threading
 
 from ..errors import ParameterError
 
 __all__ = ["Backend", "current", "use", "enabled", "set_default", "numba_available", "available", "compiled",
-           "heavy", "small_pages", "zeros", "KERNEL_MODES", "CONSUMERS"]
+           "heavy", "small_pages", "zeros", "KERNEL_MODES", "CONSUMERS", "thread_count", "usable_cores",
+           "other_runnable"]
 
 KERNEL_MODES = ("auto", "off", "force")
 #: the packages with a ``compiled`` module of kernels (``shapeflow.<name>.compiled``)
@@ -91,6 +100,7 @@ class Backend:
     kernels: str = "auto"
     min_size: int = 50_000
     small_pages: bool = False
+    threads: int | str = "auto"
 
     def __post_init__(self):
         if self.kernels not in KERNEL_MODES:
@@ -99,6 +109,9 @@ class Backend:
             raise ParameterError(f"min_size must be an integer >= 0, got {self.min_size!r}")
         if not isinstance(self.small_pages, bool):
             raise ParameterError(f"small_pages must be True or False, got {self.small_pages!r}")
+        if self.threads != "auto" and (isinstance(self.threads, bool) or not isinstance(self.threads, int)
+                                       or self.threads < 1):
+            raise ParameterError(f"threads must be 'auto' or an integer >= 1, got {self.threads!r}")
 
     def uses_compiled(self, size: int, *, min_size: int | None = None) -> bool:
         """Whether a problem of ``size`` runs compiled (numba installed and the size reached)."""
@@ -183,7 +196,11 @@ def compiled(consumer: str, size: int, *, min_size: int | None = None):
     of ``size`` compiled, else None (use the NumPy/SciPy twin)."""
     if not current().uses_compiled(size, min_size=min_size):
         return None
-    return _module(consumer)
+    mod = _module(consumer)
+    k = _call_threads.get()
+    if k is not None:          # numba may have been imported just now, inside a heavy call
+        _apply_threads(k)
+    return mod
 
 
 def zeros(shape, dtype=None):
@@ -243,10 +260,73 @@ def small_pages():
                 setter(bool(_pages["saved"]))
 
 
+def usable_cores() -> int:
+    """Cores this process may use: its CPU affinity, capped by its cgroup's CPU quota."""
+    try:
+        cores = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        cores = os.cpu_count() or 1
+    try:
+        with open("/proc/self/cgroup") as f:
+            path = next((ln.split(":", 2)[2].strip() for ln in f if ln.startswith("0::")), None)
+        if path is not None:
+            with open(os.path.join("/sys/fs/cgroup", path.lstrip("/"), "cpu.max")) as f:
+                quota, period = f.read().split()
+            if quota != "max":
+                cores = min(cores, max(1, int(int(quota) // int(period))))
+    except (OSError, ValueError, StopIteration):
+        pass
+    return max(1, cores)
+
+
+def other_runnable() -> int:
+    """Tasks of the machine runnable right now besides the caller (``/proc/loadavg``; 0 elsewhere)."""
+    try:
+        with open("/proc/loadavg") as f:
+            running = int(f.read().split()[3].split("/")[0])
+    except (OSError, ValueError, IndexError):
+        return 0
+    return max(0, running - 1)
+
+
+def thread_count() -> int:
+    """Threads the compiled parallel kernels use in a call starting now (see ``threads``)."""
+    b = current()
+    k = b.threads if b.threads != "auto" else max(1, usable_cores() - other_runnable())
+    cap = os.environ.get("NUMBA_NUM_THREADS")
+    if cap and cap.isdigit() and int(cap) >= 1:
+        k = min(k, int(cap))
+    return k
+
+
+_call_threads: contextvars.ContextVar[int | None] = contextvars.ContextVar("shapeflow_threads", default=None)
+
+
+def _apply_threads(k: int) -> None:
+    import numba
+
+    numba.set_num_threads(max(1, min(k, numba.config.NUMBA_NUM_THREADS)))
+
+
 def heavy(fn):
-    """Decorator for shapeflow's heavy entry points: run ``fn`` inside :func:`small_pages`."""
+    """Decorator for shapeflow's heavy entry points: run ``fn`` inside :func:`small_pages`, with the
+    thread count of :func:`thread_count` (the caller's numba setting restored afterwards)."""
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
-        with small_pages():
+        if _call_threads.get() is not None:          # nested heavy call: the outer one decided
             return fn(*args, **kwargs)
+        k = thread_count()
+        token = _call_threads.set(k)
+        numba = sys.modules.get("numba")
+        old = numba.get_num_threads() if numba is not None else None
+        if numba is not None:
+            _apply_threads(k)
+        try:
+            with small_pages():
+                return fn(*args, **kwargs)
+        finally:
+            _call_threads.reset(token)
+            numba = sys.modules.get("numba")
+            if numba is not None:   # back to the caller's setting (a fresh thread's default if numba was new)
+                numba.set_num_threads(old if old is not None else numba.config.NUMBA_NUM_THREADS)
     return wrapper

@@ -263,6 +263,7 @@ class BrushBase:
         raise NotImplementedError
 
     @serialised
+    @accel.heavy
     def preview(self, center) -> Dab:
         """Compute a dab at ``center`` without applying it ("Drag Dot").
 
@@ -300,6 +301,7 @@ class BrushBase:
         self._pending = None
 
     @serialised
+    @accel.heavy
     def dab(self, center) -> np.ndarray:
         """Apply one dab at ``center``; returns the indices of the vertices it moved.
 
@@ -309,6 +311,7 @@ class BrushBase:
         return self.commit()
 
     @serialised
+    @accel.heavy
     def stroke(self, points, spacing: float | None = 0.25, *,
                progress: Callable[[int, int], None] | None = None) -> np.ndarray:
         """Dabs along a polyline, one every ``spacing × radius`` of arc length.
