@@ -93,16 +93,11 @@ def read_obj(data: bytes, name: str) -> Mesh:
         what = ", ".join(f"{n} '{t}' line{'s' if n > 1 else ''}" for t, n in dropped.items())
         warnings.warn(DataLossWarning(f"{name}: not kept (they describe no polygon): {what}"), stacklevel=3)
     vfirst = rf[vrec]
-    mesh = build_mesh(name, vertices, sizes, idx, attributes=attributes,
+    keep = corner or face or any(meta.values())
+    return build_mesh(name, vertices, sizes, idx, attributes=attributes, corner_attributes=corner,
+                      face_attributes=face, metadata={"obj": meta} if keep else None,
                       where_vertex=lambda i: f"line {txt.lineno(vfirst[i])}",
                       where_face=lambda f: f"line {txt.lineno(ffirst[f])}")
-    if corner or face or any(meta.values()):
-        try:
-            mesh = Mesh(mesh.vertices, None, attributes=mesh.attributes, corner_attributes=corner,
-                        face_attributes=face, metadata={"obj": meta}, _topology=mesh.topology)
-        except MeshError as exc:
-            raise MeshError(f"{name}: {exc}") from None
-    return mesh
 
 
 def _check_tags(txt: Text, a: np.ndarray, other: np.ndarray, so: np.ndarray, lo: np.ndarray) -> dict:

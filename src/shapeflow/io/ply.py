@@ -341,14 +341,10 @@ def read_ply(data: bytes, name: str) -> Mesh:
     meta = {key: [ln.split(None, 1)[1] if len(ln.split(None, 1)) > 1 else "" for ln in header.split("\n")
                   if ln.split(None, 1)[:1] == [key]] for key in ("comment", "obj_info")}
     meta["comment"] = [c for c in meta["comment"] if c != OWN_COMMENT]
-    mesh = build_mesh(name, vertices, sizes, idx, attributes=attributes, where_vertex=vloc, where_face=floc)
-    if corner or face or meta["comment"] or meta["obj_info"]:
-        try:
-            mesh = Mesh(mesh.vertices, None, attributes=mesh.attributes, corner_attributes=corner,
-                        face_attributes=face, metadata={"ply": meta}, _topology=mesh.topology)
-        except MeshError as exc:
-            raise MeshError(f"{name}: {exc}") from None
-    return mesh
+    keep = corner or face or meta["comment"] or meta["obj_info"]
+    return build_mesh(name, vertices, sizes, idx, attributes=attributes, corner_attributes=corner,
+                      face_attributes=face, metadata={"ply": meta} if keep else None,
+                      where_vertex=vloc, where_face=floc)
 
 
 def _face_extras(fel: _Element, vals: dict, sizes: np.ndarray, name: str):

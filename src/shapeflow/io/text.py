@@ -164,11 +164,12 @@ def text_data(data: bytes, name: str, kind: str) -> bytes:
     return data
 
 
-def build_mesh(name: str, vertices, sizes, indices, *, attributes=None,
-           where_vertex=None, where_face=None) -> Mesh:
+def build_mesh(name: str, vertices, sizes, indices, *, attributes=None, corner_attributes=None,
+               face_attributes=None, metadata=None, where_vertex=None, where_face=None) -> Mesh:
     """Make the Mesh; its validation errors are re-raised naming the file and place."""
     try:
-        return Mesh.from_csr(vertices, sizes, indices, attributes=attributes)
+        return Mesh.from_csr(vertices, sizes, indices, attributes=attributes, corner_attributes=corner_attributes,
+                             face_attributes=face_attributes, metadata=metadata)
     except MeshError as exc:
         msg = str(exc)
         m = re.search(r"\b(face|vertex) (\d+)\b", msg)
