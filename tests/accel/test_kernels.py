@@ -266,3 +266,20 @@ def test_small_meshes_do_not_use_kernels():
     assert kernels.compiled("mesh", size) is not None
     with kernels.enabled(False):
         assert kernels.compiled("mesh", 10**9) is None
+
+
+def test_results_do_not_depend_on_the_thread_count():
+    """threads="auto" picks the thread count from the machine's load at each call: the compiled
+    CG sums in fixed blocks and the split dab solve does the same arithmetic on one thread, so
+    the same input gives the same bits however busy the machine is."""
+    m = meshgen.grid(40, 30, jitter=0.1, seed=2, mix=0.3, z=lambda x, y: 0.1 * np.sin(x) * y)
+    out = {}
+    for t in (1, 2):
+        with kernels.use(kernels="force", threads=t):
+            a = sf.flow(m, -20.0, solver="cg", iterations=2)
+            b = sf.Brush(m, lam=-30.0, radius=0.35 * m.diagonal)
+            b.dab(m.vertices[m.n_vertices // 2])
+            out[t] = (a.vertices, b.vertices, b.last.solver)
+    np.testing.assert_array_equal(out[1][0], out[2][0])
+    np.testing.assert_array_equal(out[1][1], out[2][1])
+    assert out[1][2] == out[2][2]

@@ -834,15 +834,17 @@ def test_split_solver_falls_back_where_it_does_not_apply():
     X, used, _ = solver.solve(k, R, C, V, bad, rhs)
     assert used in ("lu", "cholesky")
     np.testing.assert_allclose(A_bad @ X, rhs, rtol=1e-8, atol=1e-8)
-    # one thread: the one-band path
+    # one thread: the same split, the halves one after the other, the same bits
+    X2, used2, _ = solver.solve(k, R, C, V, diag, rhs)
     old = numba.get_num_threads()
     numba.set_num_threads(1)
     try:
-        X, used, _ = solver.solve(k, R, C, V, diag, rhs)
+        X1, used1, _ = solver.solve(k, R, C, V, diag, rhs)
     finally:
         numba.set_num_threads(old)
-    assert used == "banded"
-    np.testing.assert_allclose(X, ref, rtol=1e-9, atol=1e-11)
+    assert used1 == used2 == "split"
+    np.testing.assert_array_equal(X1, X2)
+    np.testing.assert_allclose(X1, ref, rtol=1e-9, atol=1e-11)
     # an explicit solver="banded" never splits; small systems do not either
     assert LocalSolver("banded").solve(k, R, C, V, diag, rhs)[1] == "banded"
     ks, Rs, Cs, Vs, ds, rs, As = _grid_system(20, 20, seed=6)
@@ -858,8 +860,7 @@ def test_split_dabs_equal_one_band_dabs():
     b = sf.Brush(mesh, lam=-30.0, radius=0.38 * mesh.diagonal, solver="banded")
     for shift in (0.0, 0.1, -0.1):
         p = c + shift * mesh.diagonal
-        with sf.accel.use(threads=2):     # two threads whatever else the machine runs (threads="auto")
-            a.dab(p)
+        a.dab(p)
         b.dab(p)
         assert a.last.solver == "split" and b.last.solver == "banded"
         assert a.last.indices.size >= 1000

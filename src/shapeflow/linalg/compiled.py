@@ -28,49 +28,76 @@ def _row_times3(indptr, indices, data, B, i):
     return a0, a1, a2
 
 
+#: rows per block of the dot products: partial sums per block, added in block order, so the result
+#: does not depend on the number of threads (a parallel reduction's order would)
+BLOCK = 4096
+
+
+@njit(cache=True)
+def _sum_blocks(part):
+    out = np.zeros(3)
+    for b in range(part.shape[0]):
+        out[0] += part[b, 0]
+        out[1] += part[b, 1]
+        out[2] += part[b, 2]
+    return out
+
+
 @njit(parallel=True, cache=True, fastmath=False)
 def _spmm_dot(indptr, indices, data, P, AP, k):
-    """AP = A P (P, AP are (n, 3)); returns the k column dots pᵀAp."""
+    """AP = A P (P, AP are (n, 3)); returns the k column dots pᵀAp (the same bits on any number of threads)."""
     n = indptr.size - 1
-    s0 = 0.0
-    s1 = 0.0
-    s2 = 0.0
-    for i in prange(n):
-        a0, a1, a2 = _row_times3(indptr, indices, data, P, i)
-        AP[i, 0] = a0
-        AP[i, 1] = a1
-        AP[i, 2] = a2
-        s0 += a0 * P[i, 0]
-        s1 += a1 * P[i, 1]
-        s2 += a2 * P[i, 2]
-    return np.array([s0, s1, s2])
+    nb = (n + BLOCK - 1) // BLOCK
+    part = np.zeros((nb, 3))
+    for b in prange(nb):
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        for i in range(b * BLOCK, min(n, (b + 1) * BLOCK)):
+            a0, a1, a2 = _row_times3(indptr, indices, data, P, i)
+            AP[i, 0] = a0
+            AP[i, 1] = a1
+            AP[i, 2] = a2
+            s0 += a0 * P[i, 0]
+            s1 += a1 * P[i, 1]
+            s2 += a2 * P[i, 2]
+        part[b, 0] = s0
+        part[b, 1] = s1
+        part[b, 2] = s2
+    return _sum_blocks(part)
 
 
 @njit(parallel=True, cache=True, fastmath=False)
 def _update_xr(X, R, P, AP, minv, alpha):
-    """X += αP, R −= αAP; returns the column dots rᵀM⁻¹r of the new residual."""
+    """X += αP, R −= αAP; returns the column dots rᵀM⁻¹r of the new residual (blocked, as _spmm_dot)."""
     n = X.shape[0]
-    s0 = 0.0
-    s1 = 0.0
-    s2 = 0.0
     a0 = alpha[0]
     a1 = alpha[1]
     a2 = alpha[2]
-    for i in prange(n):
-        m = minv[i]
-        X[i, 0] += a0 * P[i, 0]
-        X[i, 1] += a1 * P[i, 1]
-        X[i, 2] += a2 * P[i, 2]
-        r0 = R[i, 0] - a0 * AP[i, 0]
-        r1 = R[i, 1] - a1 * AP[i, 1]
-        r2 = R[i, 2] - a2 * AP[i, 2]
-        R[i, 0] = r0
-        R[i, 1] = r1
-        R[i, 2] = r2
-        s0 += r0 * r0 * m
-        s1 += r1 * r1 * m
-        s2 += r2 * r2 * m
-    return np.array([s0, s1, s2])
+    nb = (n + BLOCK - 1) // BLOCK
+    part = np.zeros((nb, 3))
+    for b in prange(nb):
+        s0 = 0.0
+        s1 = 0.0
+        s2 = 0.0
+        for i in range(b * BLOCK, min(n, (b + 1) * BLOCK)):
+            m = minv[i]
+            X[i, 0] += a0 * P[i, 0]
+            X[i, 1] += a1 * P[i, 1]
+            X[i, 2] += a2 * P[i, 2]
+            r0 = R[i, 0] - a0 * AP[i, 0]
+            r1 = R[i, 1] - a1 * AP[i, 1]
+            r2 = R[i, 2] - a2 * AP[i, 2]
+            R[i, 0] = r0
+            R[i, 1] = r1
+            R[i, 2] = r2
+            s0 += r0 * r0 * m
+            s1 += r1 * r1 * m
+            s2 += r2 * r2 * m
+        part[b, 0] = s0
+        part[b, 1] = s1
+        part[b, 2] = s2
+    return _sum_blocks(part)
 
 
 @njit(parallel=True, cache=True, fastmath=False)

@@ -138,9 +138,9 @@ class LocalSolver:
 
     def split(self, k, ri, ci, vi, diag, rhs, notes: list | None = None):
         """The system solved as two banded halves and their separator, the halves on
-        two threads (compiled ``split_solve``): (X, "split", band), or None where
-        it does not apply (no kernels, one thread, no LAPACK pointers, no
-        balanced cut, not numerically positive definite).
+        two threads when there are two (compiled ``split_solve``): (X, "split", band),
+        or None where it does not apply (no kernels, no LAPACK pointers, no balanced
+        cut, not numerically positive definite).  The result is the same on one thread.
 
         Order: Cuthill–McKee levels of the largest connected component as
         :func:`~shapeflow.linalg.ordering.local_order`, cut at the level of
@@ -159,8 +159,8 @@ class LocalSolver:
             if notes is not None:
                 notes.append(FALLBACKS.get("split", "split solver unavailable"))
             return None
-        if split_kernels.get_num_threads() < 2:
-            return None
+        # one thread too: the halves are then factored one after the other, with the same arithmetic,
+        # so a dab's result does not depend on how many threads the machine can give it
         perm, inv, o1, o2, lev1, lev2 = np.empty((6, k), np.int64)
         dims = np.empty(7, np.int64)
         if split_kernels.split_order(row_ptr(ri, k), ri, ci, max(64, k // 5), perm, inv, o1, o2, lev1, lev2,

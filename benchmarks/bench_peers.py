@@ -1,0 +1,145 @@
+"""shapeflow's implicit step against the filters a user would pick instead, in one run.
+
+    python benchmarks/bench_peers.py [--reps 7]
+
+The mesh: Suzanne subdivided to ~126K vertices, triangulated for the triangle-only peers.  Each
+row is a median of ``--reps`` runs, fresh (a new mesh object each time, so no cached topology);
+peers that are not installed are skipped (libigl, trimesh and pyvista are test dependencies;
+gpytoolbox, robust_laplacian, pymeshlab and open3d are used when present).  Ratios are to
+shapeflow's one implicit step (λ = 1, normalised operator) on the same triangles, in this run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import statistics
+import sys
+import time
+import warnings
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "src"))
+
+import numpy as np  # noqa: E402
+
+import shapeflow as sf  # noqa: E402
+from shapeflow import accel  # noqa: E402
+from shapeflow.geometry.measures import fan_triangles  # noqa: E402
+
+SHARED = ROOT.parent / "shared" / "meshes"
+
+
+def median_time(fn, reps: int) -> float:
+    ts = []
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        fn()
+        ts.append(time.perf_counter() - t0)
+    return statistics.median(ts)
+
+
+def peers(V: np.ndarray, F: np.ndarray):
+    """(name, callable) of every peer installed here, each doing its own whole job from arrays."""
+    out = []
+    try:
+        import igl
+        import scipy.sparse.linalg as sla
+
+        def igl_step():
+            L = igl.cotmatrix(V, F)
+            M = igl.massmatrix(V, F, igl.MASSMATRIX_TYPE_VORONOI)
+            return sla.spsolve((M - 1e-3 * L).tocsc(), M @ V)
+
+        out.append(("libigl cotmatrix + massmatrix + spsolve (1 implicit step)", igl_step))
+    except ImportError:
+        pass
+    try:
+        import trimesh
+        from trimesh.smoothing import filter_taubin
+
+        out.append(("trimesh Taubin (10 iterations)",
+                    lambda: filter_taubin(trimesh.Trimesh(V, F, process=False), iterations=10)))
+    except ImportError:
+        pass
+    try:
+        import pyvista as pv
+
+        faces = np.hstack([np.full((F.shape[0], 1), 3), F]).reshape(-1)
+        out.append(("pyvista windowed sinc (20 iterations)",
+                    lambda: pv.PolyData(V, faces).smooth_taubin(n_iter=20)))
+    except ImportError:
+        pass
+    try:
+        import gpytoolbox as gpy
+        import scipy.sparse.linalg as sla
+
+        def gpy_step():
+            L = gpy.cotangent_laplacian(V, F)
+            M = gpy.massmatrix(V, F)
+            return sla.spsolve((M + 1e-3 * L).tocsc(), M @ V)
+
+        out.append(("gpytoolbox cotangent Laplacian + spsolve", gpy_step))
+    except ImportError:
+        pass
+    try:
+        import robust_laplacian
+        import scipy.sparse.linalg as sla
+
+        def rl_step():
+            L, M = robust_laplacian.mesh_laplacian(V, F)
+            return sla.spsolve((M + 1e-3 * L).tocsc(), M @ V)
+
+        out.append(("robust_laplacian + spsolve", rl_step))
+    except ImportError:
+        pass
+    try:
+        import open3d as o3d
+
+        def o3d_taubin():
+            m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(V), o3d.utility.Vector3iVector(F))
+            return m.filter_smooth_taubin(number_of_iterations=10)
+
+        out.append(("open3d Taubin (10 iterations)", o3d_taubin))
+    except ImportError:
+        pass
+    return out
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--reps", type=int, default=7)
+    ap.add_argument("--threads", default="auto", help="shapeflow's thread setting (auto or a number)")
+    args = ap.parse_args(argv)
+    warnings.simplefilter("ignore")
+    threads = args.threads if args.threads == "auto" else int(args.threads)
+    suz = sf.load(SHARED / "suzanne_hybrid_open.obj")
+    while suz.n_vertices < 100_000:
+        suz = sf.subdivide(suz, 1)
+    V = np.ascontiguousarray(suz.vertices)
+    F = fan_triangles(suz)
+    tri = sf.Mesh(V, F)
+    with accel.use(threads=threads):
+        sf.flow(tri, 1.0)     # compiled kernels loaded
+
+        def ours():
+            with accel.use(threads=threads):
+                return sf.flow(sf.Mesh(V, F), 1.0)       # fresh: validation, topology, operator, solve
+
+        base = median_time(ours, args.reps)
+    rows = [("shapeflow, 1 implicit step (fresh mesh)", base)]
+    for name, fn in peers(V, F):
+        fn()
+        rows.append((name, median_time(fn, args.reps)))
+    print(f"shapeflow {sf.__version__}; {tri.n_vertices:,} vertices, {tri.n_faces:,} triangles; {os.cpu_count()} "
+          f"cores, load average {os.getloadavg()[0]:.2f}; threads={threads}; median of {args.reps} runs\n")
+    print("| method | time | ratio to shapeflow |")
+    print("|---|---|---|")
+    for name, t in rows:
+        print(f"| {name} | {1e3 * t:.0f} ms | {t / base:.2f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
