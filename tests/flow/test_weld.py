@@ -99,3 +99,24 @@ def test_subdividing_a_soup_welds_it_first(tmp_path, capsys):
     # one connected surface, as the welded cage gives (not separate patches): same points, same faces
     assert out.n_vertices == ref.n_vertices and out.n_faces == ref.n_faces
     np.testing.assert_allclose(np.sort(out.vertices, axis=0), np.sort(ref.vertices, axis=0), atol=1e-12)
+
+
+def test_the_brush_on_a_soup_counts_the_files_vertices(tmp_path, capsys):
+    import json
+    import re
+
+    from shapeflow.cli import main
+
+    m = sf.load_example("spot_cage")
+    soup = soup_of(m)
+    sf.save(tmp_path / "soup.ply", soup)
+    (tmp_path / "s.json").write_text(json.dumps({"lambda": -20, "radius": 0.9,
+                                                 "points": [m.vertices[0].tolist(), m.vertices[5].tolist()]}))
+    assert main(["brush", str(tmp_path / "soup.ply"), str(tmp_path / "out.ply"), "--stroke",
+                 str(tmp_path / "s.json")]) == 0
+    said = int(re.search(r"(\d+) of (\d+) vertices moved", capsys.readouterr().err).group(1))
+    out = sf.load(tmp_path / "out.ply")
+    moved = np.flatnonzero(np.any(out.vertices != soup.vertices, axis=1))
+    assert said == moved.size > 0
+    w = sf.weld(soup)          # every copy of a moved vertex moved
+    assert set(moved.tolist()) == set(np.flatnonzero(np.isin(w.weld_map, w.weld_map[moved])).tolist())

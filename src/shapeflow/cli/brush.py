@@ -18,6 +18,8 @@ import json
 import math
 import time
 
+import numpy as np
+
 from ..errors import ParameterError
 from ..mesh import Mesh
 from .common import (
@@ -170,6 +172,8 @@ def run(args) -> int:
     centers = brush.dab_centers(stroke["points"], stroke["spacing"])
     with progress_callback(len(centers), "dabs", quiet=args.quiet) as cb:
         moved = brush.stroke(centers, spacing=None, progress=cb)
+    if operand is not mesh:    # welded: count the input's vertices (every copy of a moved vertex moved)
+        moved = np.flatnonzero(np.isin(operand.weld_map, moved))
     t2 = time.perf_counter()
     result = restore(brush.mesh)
     save_mesh(out_path, result, args.force)
