@@ -19,17 +19,13 @@ import statistics
 import subprocess
 import sys
 import time
-from pathlib import Path
-
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "src"))
 
 import numpy as np  # noqa: E402
+from common import SHARED, suzanne_126k  # noqa: E402  (first: it puts src/ on the path)
 
 import shapeflow as sf  # noqa: E402
 from shapeflow import accel  # noqa: E402
 
-SHARED = ROOT.parent / "shared" / "meshes"
 BUSY = "import time\nend = time.time() + 600\nwhile time.time() < end:\n    pass\n"
 
 
@@ -44,9 +40,7 @@ def main(argv=None) -> int:
     import warnings
 
     warnings.simplefilter("ignore")
-    suz = sf.load(SHARED / "suzanne_hybrid_open.obj")
-    while suz.n_vertices < 100_000:
-        suz = sf.subdivide(suz, 1)
+    suz = suzanne_126k()
     spot = sf.subdivide(sf.load(SHARED / "spot_quad.obj"), 3)
     brush = {t: sf.Brush(spot, lam=-50.0, radius=0.05 * spot.diagonal) for t in ("auto", 1)}
     rng = np.random.default_rng(1)

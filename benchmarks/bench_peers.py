@@ -13,31 +13,15 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
-import time
 import warnings
-from pathlib import Path
-
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "src"))
 
 import numpy as np  # noqa: E402
+from common import median_time, suzanne_126k  # noqa: E402  (first: it puts src/ on the path)
 
 import shapeflow as sf  # noqa: E402
 from shapeflow import accel  # noqa: E402
 from shapeflow.geometry.measures import fan_triangles  # noqa: E402
-
-SHARED = ROOT.parent / "shared" / "meshes"
-
-
-def median_time(fn, reps: int) -> float:
-    ts = []
-    for _ in range(reps):
-        t0 = time.perf_counter()
-        fn()
-        ts.append(time.perf_counter() - t0)
-    return statistics.median(ts)
 
 
 def peers(V: np.ndarray, F: np.ndarray):
@@ -114,9 +98,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     warnings.simplefilter("ignore")
     threads = args.threads if args.threads == "auto" else int(args.threads)
-    suz = sf.load(SHARED / "suzanne_hybrid_open.obj")
-    while suz.n_vertices < 100_000:
-        suz = sf.subdivide(suz, 1)
+    suz = suzanne_126k()
     V = np.ascontiguousarray(suz.vertices)
     F = fan_triangles(suz)
     tri = sf.Mesh(V, F)

@@ -116,11 +116,11 @@ def welded_for_operator(mesh, kw: dict, command: str, quiet: bool):
     """
     import numpy as np
 
-    from ..geometry.weld import needs_weld, unweld, weld
+    from ..geometry.weld import unweld, weld
 
-    if mesh.n_faces == 0 or not needs_weld(mesh):
+    welded = weld(mesh) if mesh.n_faces else mesh     # one neighbour search decides and welds
+    if welded.n_vertices == mesh.n_vertices:
         return mesh, kw, (lambda result: result)
-    welded = weld(mesh)
     first = np.unique(welded.weld_map, return_index=True)[1]
     if isinstance(kw.get("weights"), np.ndarray):
         kw = {**kw, "weights": kw["weights"][first]}

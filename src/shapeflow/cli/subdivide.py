@@ -69,10 +69,10 @@ def run(args) -> int:
     mesh = load_mesh_arg(args.input)
     if args.weights:
         mesh = mesh.with_weights(_load_weights(args.weights, mesh.n_vertices))
-    from ..geometry.weld import needs_weld, weld
+    from ..geometry.weld import weld
 
-    if needs_weld(mesh):   # a soup or split seams would subdivide as separate patches
-        welded = weld(mesh)
+    welded = weld(mesh)
+    if welded.n_vertices < mesh.n_vertices:   # a soup or split seams would subdivide as separate patches
         if not getattr(args, "quiet", False):
             eprint(f"shapeflow subdivide: {mesh.n_vertices - welded.n_vertices} vertices coincide with others "
                    f"(seams or a triangle soup): welded to {welded.n_vertices} before subdividing "
