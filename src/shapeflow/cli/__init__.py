@@ -17,17 +17,26 @@ import threading
 import warnings
 
 from .. import accel
-from ..errors import DataLossWarning, OptionalDependencyError, ShapeflowError
+from ..errors import DataLossWarning, OptionalDependencyError, ParameterError, ShapeflowError
 
 #: subcommand modules, in the order ``--help`` lists them
 # (flow.py registers flow, enhance and smooth)
-COMMANDS = ["info", "flow", "subdivide", "family", "brush", "render", "curvature"]
+COMMANDS = ["info", "flow", "subdivide", "family", "brush", "render", "curvature", "batch"]
 
 
-def build_parser() -> argparse.ArgumentParser:
+class RaisingParser(argparse.ArgumentParser):
+    """An argument parser whose errors raise :class:`ParameterError` instead of exiting (the batch
+    runner checks each step of an operation with it)."""
+
+    def error(self, message):
+        raise ParameterError(f"{self.prog}: {message}")
+
+
+def build_parser(*, raising: bool = False) -> argparse.ArgumentParser:
+    """The ``shapeflow`` parser; ``raising=True``: usage errors raise ParameterError (no exit)."""
     from .. import __version__
 
-    parser = argparse.ArgumentParser(
+    parser = (RaisingParser if raising else argparse.ArgumentParser)(
         prog="shapeflow",
         description="Smooth and enhance polygon meshes (triangles, quads, n-gons) "
         "with the hybrid quad/triangle Laplace-Beltrami operator.",

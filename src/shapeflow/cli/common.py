@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import sys
+from dataclasses import dataclass, field
 
 
 def load_mesh_arg(arg: str, *, faces: bool = True):
@@ -18,6 +21,8 @@ def load_mesh_arg(arg: str, *, faces: bool = True):
         from ..io import load
 
         mesh = load(arg)
+    note_fact("vertices", mesh.n_vertices)
+    note_fact("faces", mesh.n_faces)
     if faces and mesh.n_faces == 0:
         from ..errors import MeshError
 
@@ -26,7 +31,44 @@ def load_mesh_arg(arg: str, *, faces: bool = True):
     return mesh
 
 
+@dataclass
+class Collected:
+    """What a command said and did while :func:`collecting` was active."""
+
+    messages: list = field(default_factory=list)   #: the lines it would have printed on stderr
+    facts: dict = field(default_factory=dict)      #: first value of each fact (vertices, faces, report...)
+
+
+_SINK: contextvars.ContextVar[Collected | None] = contextvars.ContextVar("shapeflow_cli_sink", default=None)
+
+
+@contextlib.contextmanager
+def collecting():
+    """Within the block, the commands' stderr lines and facts go to the yielded :class:`Collected`.
+
+    ``shapeflow batch`` runs the commands this way, so each file's messages and flow report
+    land in its manifest record.  Per context (thread or task), like :mod:`contextvars`.
+    """
+    sink = Collected()
+    token = _SINK.set(sink)
+    try:
+        yield sink
+    finally:
+        _SINK.reset(token)
+
+
+def note_fact(key: str, value) -> None:
+    """Record a fact for :func:`collecting` (the first value of a key stays); nothing outside it."""
+    sink = _SINK.get()
+    if sink is not None:
+        sink.facts.setdefault(key, value)
+
+
 def eprint(*a, **kw) -> None:
+    sink = _SINK.get()
+    if sink is not None:
+        sink.messages.append(kw.get("sep", " ").join(str(x) for x in a))
+        return
     print(*a, file=sys.stderr, **kw)
 
 

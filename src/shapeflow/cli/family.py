@@ -19,7 +19,7 @@ from .. import params
 from ..errors import ParameterError
 from ..geometry import refresh_normals
 from ..io import output_target
-from .common import eprint, load_mesh_arg, progress_callback, save_mesh, welded_for_operator
+from .common import eprint, load_mesh_arg, note_fact, progress_callback, save_mesh, welded_for_operator
 from .flow import add_flow_options, flow_kwargs
 
 #: members solved in one batch are held in memory together; above this many
@@ -205,6 +205,7 @@ def run(args) -> int:
                 done += 1
                 if cb is not None:
                     cb(done, 2 * len(lams))
+    note_fact("reports", reports)
     if image:
         from .images import family_image
 

@@ -10,6 +10,7 @@ from .common import (
     eprint,
     load_mesh_arg,
     note_compiling,
+    note_fact,
     progress_callback,
     resolve_output,
     save_mesh,
@@ -102,6 +103,7 @@ def run(args) -> int:
     with progress_callback(args.iterations, "flow", quiet=args.quiet) as cb:
         result = flow(operand, lam, progress=cb, **kw)
     report = result.report
+    note_fact("report", report)
     result = restore(result)
     result.report = report
     warn_degenerate_result(args.command, lam, mesh, result)

@@ -38,6 +38,7 @@ def register(sub) -> None:
     p.add_argument("--weights-out", metavar="FILE",
                    help="also write the subdivided weights to FILE (.npy or text)")
     p.add_argument("--force", action="store_true", help="allow OUT to be the input file, or a read-only file")
+    p.add_argument("--quiet", "-q", action="store_true", help="no summary on stderr")
     add_image_options(p)
     p.set_defaults(func=run)
 
@@ -73,7 +74,7 @@ def run(args) -> int:
 
     welded = weld(mesh)
     if welded.n_vertices < mesh.n_vertices:   # a soup or split seams would subdivide as separate patches
-        if not getattr(args, "quiet", False):
+        if not args.quiet:
             eprint(f"shapeflow subdivide: {mesh.n_vertices - welded.n_vertices} vertices coincide with others "
                    f"(seams or a triangle soup): welded to {welded.n_vertices} before subdividing "
                    "(corner attributes such as UVs keep their seams)")
@@ -88,11 +89,12 @@ def run(args) -> int:
     save_mesh(args.output, out, args.force)
     if args.weights_out:
         write_values(args.weights_out, out.weights, args.force)
-    eprint(
-        f"subdivide: {mesh.n_vertices} vertices, {mesh.n_faces} faces -> "
-        f"{out.n_vertices} vertices, {out.n_faces} faces "
-        f"({args.scheme}, {args.levels} level{'s' if args.levels != 1 else ''}) in {dt:.3f} s"
-    )
+    if not args.quiet:
+        eprint(
+            f"subdivide: {mesh.n_vertices} vertices, {mesh.n_faces} faces -> "
+            f"{out.n_vertices} vertices, {out.n_faces} faces "
+            f"({args.scheme}, {args.levels} level{'s' if args.levels != 1 else ''}) in {dt:.3f} s"
+        )
     if args.image:
         from .images import subdivide_image
         subdivide_image(args, mesh, out)

@@ -1,0 +1,141 @@
+"""The OPERATION of a batch: one or more single-file commands, checked once, run per file.
+
+An operation is what follows ``shapeflow batch INPUTS OUTDIR``: a command of the
+single-file CLI with its options, without its input and output (``enhance
+--strength 50``), or a pipeline of them joined by ``--then`` (``smooth -s 2
+--then subdivide --levels 1``).  Each step runs exactly as ``shapeflow COMMAND
+... IN OUT`` would (the same parser, the same code), so a batch's output equals
+the single-file command's.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import shlex
+from dataclasses import dataclass
+from typing import Sequence
+
+from ..errors import ParameterError
+
+__all__ = ["Operation", "parse_operation", "STEP_COMMANDS", "THEN"]
+
+#: commands a batch can run on each file (``info`` writes nothing)
+STEP_COMMANDS = ("flow", "enhance", "smooth", "subdivide", "family", "render", "curvature", "brush")
+#: commands whose output is not a mesh another step could read: last in a pipeline only
+LAST_ONLY = ("family", "render", "curvature")
+#: options that write one more file per run: one path for every file of a batch would collide
+SIDE_OUTPUTS = (("image", "--image"), ("weights_out", "--weights-out"))
+THEN = "--then"
+
+
+@dataclass(frozen=True)
+class Operation:
+    """The checked steps of a batch operation, each ``(command, *options)``."""
+
+    steps: tuple[tuple[str, ...], ...]
+
+    @property
+    def text(self) -> str:
+        """The operation as typed on the command line."""
+        return f" {THEN} ".join(shlex.join(s) for s in self.steps)
+
+    @property
+    def last(self) -> str:
+        return self.steps[-1][0]
+
+    def output_suffix(self, input_suffix: str, fmt: str | None) -> str:
+        """Extension of a file's output: ``--format``, else PNG for render, .npy for curvature,
+        a folder ('') for family, else the input's."""
+        if self.last == "family":
+            return ""
+        if fmt:
+            return fmt.lower() if fmt.startswith(".") else "." + fmt.lower()
+        return {"render": ".png", "curvature": ".npy"}.get(self.last, input_suffix.lower())
+
+    def digest(self, fmt: str | None) -> str:
+        """Hash of everything that decides a file's output: the steps and the output format."""
+        blob = json.dumps({"steps": self.steps, "format": fmt}, sort_keys=True).encode()
+        return hashlib.sha256(blob).hexdigest()[:16]
+
+    def argv(self, i: int, source: str, output: str, fmt: str | None) -> list[str]:
+        """The command line of step ``i`` on ``source`` writing ``output``."""
+        cmd, *opts = self.steps[i]
+        extra = []
+        if cmd == "family":
+            extra.append("--force")       # members of an interrupted earlier run are redone
+            if fmt and "--format" not in opts:
+                extra += ["--format", fmt.lstrip(".").lower()]
+        return [cmd, *opts, *extra, source, output]
+
+
+def _split(tokens: list[str]) -> list[list[str]]:
+    steps, cur = [], []
+    for t in tokens:
+        if t == THEN:
+            steps.append(cur)
+            cur = []
+        else:
+            cur.append(t)
+    steps.append(cur)
+    return steps
+
+
+def parse_operation(operation: str | Sequence[str] | Operation, *, fmt: str | None = None) -> Operation:
+    """Check an operation (a string, an argv list, or an :class:`Operation`) before any work.
+
+    Every step is parsed by the single-file CLI's own parser, so an unknown option or a bad
+    value is reported now, naming the step; options that write a side file per run
+    (``--image``, ``--weights-out``) are refused.
+    """
+    if isinstance(operation, Operation):
+        steps = [list(s) for s in operation.steps]
+    elif isinstance(operation, str):
+        try:
+            steps = _split(shlex.split(operation))
+        except ValueError as exc:
+            raise ParameterError(f"operation {operation!r}: {exc}") from None
+    else:
+        steps = _split([str(t) for t in operation])
+    if not steps or not steps[0]:
+        raise ParameterError(f"no OPERATION given; one of: {', '.join(STEP_COMMANDS)} with its options "
+                             f"(several joined by {THEN})")
+    from ..cli import build_parser
+
+    parser = build_parser(raising=True)
+    for i, step in enumerate(steps):
+        where = f"step {i + 1} of the operation" if len(steps) > 1 else "the operation"
+        if not step:
+            raise ParameterError(f"{where} is empty (two {THEN} in a row, or one at an end)")
+        if step[0] not in STEP_COMMANDS:
+            raise ParameterError(f"{where}: {step[0]!r} is not a command a batch runs; "
+                                 f"use one of {', '.join(STEP_COMMANDS)}")
+        if step[0] in LAST_ONLY and i < len(steps) - 1:
+            raise ParameterError(f"{where}: {step[0]} writes no mesh for a next step; put it last")
+        out = "out" if step[0] == "family" else "out" + (f".{fmt.lstrip('.')}" if fmt else ".ply")
+        try:
+            args = parser.parse_args(Operation((tuple(step),)).argv(0, "in.ply", out, fmt))
+        except ParameterError as exc:
+            msg = str(exc).split(": ", 1)[-1]
+            raise ParameterError(f"{where} ({shlex.join(step)}): {msg} (options of the batch itself, such as "
+                                 "--format or --workers, go before INPUTS)") from None
+        for attr, flag in SIDE_OUTPUTS:
+            if getattr(args, attr, None):
+                raise ParameterError(f"{where}: {flag} writes one more file per run; a batch writes one "
+                                     "output per file (render the outputs in a second batch)")
+    return Operation(tuple(tuple(s) for s in steps))
+
+
+def run_steps(op: Operation, source: str, output: str, workdir: str, fmt: str | None) -> None:
+    """Run every step on ``source``; intermediate meshes go to ``workdir`` (input's format)."""
+    from ..cli import build_parser
+
+    parser = build_parser(raising=True)
+    cur = source
+    ext = os.path.splitext(source)[1] or ".ply"
+    for i in range(len(op.steps)):
+        out = output if i == len(op.steps) - 1 else os.path.join(workdir, f"step{i + 1}{ext}")
+        args = parser.parse_args(op.argv(i, cur, out, fmt))
+        args.func(args)
+        cur = out
