@@ -120,6 +120,17 @@ def test_pipeline_format_and_family(dataset, cluster, tmp_path):
     for r in fam.done:
         members = sorted(os.listdir(r["output"]))
         assert len(members) == 2 and len(r["report"]) == 1
+    try:
+        import vtk  # noqa: F401
+    except ImportError:
+        return
+    pics = sb.run(sources[:2], str(tmp_path / "pics"), "render --size 160x120 --view iso", client=cluster,
+                  progress=False)
+    assert len(pics.done) == 2
+    from PIL import Image
+
+    for r in pics.done:
+        assert r["output"].endswith(".png") and Image.open(r["output"]).size == (160, 120)
 
 
 def test_killed_worker_loses_nothing(dataset, tmp_path):
@@ -157,6 +168,48 @@ def test_killed_worker_loses_nothing(dataset, tmp_path):
     ref.mkdir()
     for f in files:
         assert Path(recs[f]["output"]).read_bytes() == reference(Path(f), ref / Path(f).name, op)
+
+
+def test_a_file_whose_worker_dies_twice_fails_with_the_reason(tmp_path):
+    """The retry is one: a second death of the worker running the same file fails that file."""
+    from meshgen import cube_sphere
+
+    import shapeflow as sf
+
+    slow = tmp_path / "slow.obj"
+    sf.save(slow, cube_sphere(30))
+    cluster, client = sb.local_cluster(2, retries=1)
+    kills = []
+
+    def killer():
+        deadline = time.monotonic() + 120
+        last = None
+        while time.monotonic() < deadline and len(kills) < 2:
+            busy = [w for w, keys in client.processing().items() if keys and w != last]
+            if busy:
+                try:
+                    pids = client.run(os.getpid, workers=busy[:1])
+                except Exception:   # the worker went away between the two calls: look again
+                    continue
+                os.kill(next(iter(pids.values())), signal.SIGKILL)
+                kills.append(busy[0])
+                last = busy[0]
+            time.sleep(0.05)
+
+    t = threading.Thread(target=killer)
+    try:
+        t.start()
+        rep = sb.run([str(slow)], str(tmp_path / "out"), "smooth -s 1 --iterations 100000 --update recompute",
+                     client=client, progress=False)
+        t.join()
+    finally:
+        client.close()
+        cluster.close()
+    assert len(kills) == 2
+    (rec,) = rep.records
+    assert rec["status"] == "failed" and "worker process died 2 times" in rec["error"], rec
+    assert not Path(rec["output"]).exists()
+    assert [p.name for p in (tmp_path / "out").iterdir() if not p.name.startswith(".")] == [sb.MANIFEST_NAME]
 
 
 def test_timeout_and_memory_limits(dataset, tmp_path):
