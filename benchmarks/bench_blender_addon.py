@@ -17,9 +17,16 @@ and scipy wheels, times on Suzanne subdivided 4 times (126,290 vertices,
   λ = 1, one iteration, no volume preservation): re-evaluation of the object
   with the modifier switched on (``blender_ref.laplacian_smooth``).
 
+With ``--busy``, the operator instead runs beside a busy thread of the Blender process (a NumPy
+sort loop, which releases the GIL, as Blender's depsgraph and draw threads do while the UI
+lives; ``bpy.app.timers`` jobs run on the main thread between UI events, and a ``bpy`` module
+has no event loop to run them), idle and busy, each with the BLAS libraries' default threads
+and with one thread (``OPENBLAS_NUM_THREADS=1``, ``OMP_NUM_THREADS=1``): four Blender processes,
+and the ratio default / one thread for each state.
+
 Usage::
 
-    python benchmarks/bench_blender_addon.py [--repeat N] [--zip PATH] [--skip-modifier]
+    python benchmarks/bench_blender_addon.py [--repeat N] [--zip PATH] [--skip-modifier] [--busy]
 
 Needs ``bpy`` (``pip install bpy==5.0.1``, Python 3.11).
 """
@@ -57,7 +64,36 @@ def _install(zip_path: str) -> None:
         sys.exit(f"install failed: {r}")
 
 
-def _worker(repeat: int, skip_modifier: bool) -> dict:
+class _BusyThread:
+    """A thread of this process that keeps one core busy outside the GIL until stopped."""
+
+    def __init__(self):
+        import threading
+
+        self.stop = threading.Event()
+        self.thread = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self):
+        import numpy as np
+
+        x = np.random.default_rng(0).random(1_000_000)
+        while not self.stop.is_set():
+            np.sort(x, kind="quicksort")
+
+    def __enter__(self):
+        self.thread.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.stop.set()
+        self.thread.join()
+        return False
+
+
+def _worker(repeat: int, skip_modifier: bool, busy: bool = False) -> dict:
+    if busy:
+        with _BusyThread():
+            return _worker(repeat, True)
     sys.path.insert(0, str(HERE))
     import blender_ref as br  # noqa: E402 - needs bpy
 
@@ -155,12 +191,38 @@ def _report(res: dict) -> None:
     print(f"target: <= 0.5 s per operator call: {verdict} it (cold median {med(res['cold']):.3f} s)")
 
 
+def _busy_report(worker: list, env: dict, out: Path) -> int:
+    """Four Blender processes: idle / busy x default BLAS threads / one thread; cold and re-run medians."""
+    med = statistics.median
+    one = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+    rows = {}
+    for state in ("idle", "busy"):
+        for threads, extra in (("default", {}), ("one thread", one)):
+            e = dict(env, SHAPEFLOW_BENCH_BUSY="1" if state == "busy" else "0", **extra)
+            proc = subprocess.run(worker, env=e, capture_output=True, text=True)
+            if proc.returncode != 0:
+                print(proc.stdout[-3000:], proc.stderr[-3000:], file=sys.stderr)
+                return 1
+            res = json.loads(out.read_text())
+            rows[state, threads] = (med(res["cold"]), med(res["warm"]))
+    print(f"Blender {res['blender']}, numpy {res['numpy']}, scipy {res['scipy']}; Suzanne 126K, "
+          f"Enhance λ=-1; medians of {len(res['cold'])} ({time.strftime('%Y-%m-%d')})")
+    print(f"{'state':6s} {'default cold':>13s} {'1 thread cold':>14s} {'ratio':>6s} "
+          f"{'default re-run':>15s} {'1 thread re-run':>16s} {'ratio':>6s}")
+    for state in ("idle", "busy"):
+        (dc, dw), (oc, ow) = rows[state, "default"], rows[state, "one thread"]
+        print(f"{state:6s} {dc:12.3f}s {oc:13.3f}s {dc / oc:6.2f} {dw:14.3f}s {ow:15.3f}s {dw / ow:6.2f}")
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--repeat", type=int, default=3, help="samples per timing (default 3)")
     ap.add_argument("--zip", help="an already built linux-x64 extension zip")
     ap.add_argument("--skip-modifier", action="store_true", help="do not time Blender's modifier (~7 s a sample)")
     ap.add_argument("--json", help="also write the raw numbers to this file")
+    ap.add_argument("--busy", action="store_true",
+                    help="idle and busy (a busy thread in Blender), default BLAS threads and one thread")
     ap.add_argument("--_install", help=argparse.SUPPRESS)
     ap.add_argument("--_worker", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -168,7 +230,8 @@ def main(argv=None) -> int:
         _install(args._install)
         return 0
     if args._worker:
-        Path(args._worker).write_text(json.dumps(_worker(args.repeat, args.skip_modifier)))
+        busy = os.environ.get("SHAPEFLOW_BENCH_BUSY") == "1"
+        Path(args._worker).write_text(json.dumps(_worker(args.repeat, args.skip_modifier or busy, busy)))
         return 0
     import importlib.util
 
@@ -183,6 +246,8 @@ def main(argv=None) -> int:
         subprocess.run(me + ["--_install", str(zip_path)], env=env, check=True, capture_output=True)
         out = tmp / "result.json"
         worker = me + ["--_worker", str(out), "--repeat", str(args.repeat)] + (["--skip-modifier"] * args.skip_modifier)
+        if args.busy:
+            return _busy_report(worker, env, out)
         proc = subprocess.run(worker, env=env, capture_output=True, text=True)
         if proc.returncode != 0:
             print(proc.stdout[-3000:], proc.stderr[-3000:], file=sys.stderr)
