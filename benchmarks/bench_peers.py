@@ -3,16 +3,18 @@
     python benchmarks/bench_peers.py [--reps 7]
 
 The mesh: Suzanne subdivided to ~126K vertices, triangulated for the triangle-only peers.  Each
-row is a median of ``--reps`` runs, fresh (a new mesh object each time, so no cached topology);
-peers that are not installed are skipped (libigl, trimesh and pyvista are test dependencies;
-gpytoolbox, robust_laplacian, pymeshlab and open3d are used when present).  Ratios are to
-shapeflow's one implicit step (λ = 1, normalised operator) on the same triangles, in this run.
+row is a median of ``--reps`` runs taken in interleaved rounds (one run of every method per
+round), fresh (a new mesh object each time, so no cached topology); peers that are not
+installed are skipped (libigl, trimesh and pyvista are test dependencies; gpytoolbox,
+robust_laplacian, pymeshlab and open3d are used when present).  Ratios are to shapeflow's one
+implicit step (λ = 1, normalised operator) on the same triangles, in this run.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import statistics
 import sys
 import warnings
 
@@ -101,20 +103,26 @@ def main(argv=None) -> int:
     suz = suzanne_126k()
     V = np.ascontiguousarray(suz.vertices)
     F = fan_triangles(suz)
-    tri = sf.Mesh(V, F)
+    n_vertices, n_faces = suz.n_vertices, F.shape[0]
     with accel.use(threads=threads):
-        sf.flow(tri, 1.0)     # compiled kernels loaded
+        sf.flow(sf.Mesh(V, F), 1.0)     # compiled kernels loaded; no mesh kept alive (docs/performance.md:
+        #                                 a live mesh's heap makes glibc return the next one's pages)
 
         def ours():
             with accel.use(threads=threads):
                 return sf.flow(sf.Mesh(V, F), 1.0)       # fresh: validation, topology, operator, solve
 
-        base = median_time(ours, args.reps)
-    rows = [("shapeflow, 1 implicit step (fresh mesh)", base)]
-    for name, fn in peers(V, F):
-        fn()
-        rows.append((name, median_time(fn, args.reps)))
-    print(f"shapeflow {sf.__version__}; {tri.n_vertices:,} vertices, {tri.n_faces:,} triangles; {os.cpu_count()} "
+        methods = [("shapeflow, 1 implicit step (fresh mesh)", ours), *peers(V, F)]
+        for _, fn in methods:
+            fn()                                           # imports, first-call set-up
+        # interleaved rounds: a change of the machine's load touches every method alike
+        samples = {name: [] for name, _ in methods}
+        for _ in range(args.reps):
+            for name, fn in methods:
+                samples[name].append(median_time(fn, 1))
+    rows = [(name, statistics.median(ts)) for name, ts in samples.items()]
+    base = rows[0][1]
+    print(f"shapeflow {sf.__version__}; {n_vertices:,} vertices, {n_faces:,} triangles; {os.cpu_count()} "
           f"cores, load average {os.getloadavg()[0]:.2f}; threads={threads}; median of {args.reps} runs\n")
     print("| method | time | ratio to shapeflow |")
     print("|---|---|---|")
