@@ -2,6 +2,7 @@
 
     python benchmarks/bench_flow.py            # everything (Blender too when bpy imports)
     python benchmarks/bench_flow.py --quick    # skip the 1M-vertex case and Blender
+    python benchmarks/bench_flow.py --scan 10M # a generated triangle scan: load, smooth, save, peak memory
 
 Prints medians over ``--repeat`` runs and ratios.  Times exclude file I/O;
 "fresh" includes building the Mesh from arrays (validation, topology, operator
@@ -112,13 +113,113 @@ def child_million(repeat: int) -> dict:
             "solver": out.report.solver, "cg": out.report.cg_iterations, "kernels": sf.accel.available()}
 
 
+def parse_count(text: str) -> int:
+    """``50M``, ``2.5M``, ``800K`` or a plain number."""
+    t = text.strip().upper()
+    scale = {"K": 10**3, "M": 10**6, "G": 10**9}.get(t[-1:], 1)
+    return int(float(t[:-1] if scale > 1 else t) * scale)
+
+
+def write_scan(path: Path, n_target: int, chunk: int = 4_000_000) -> tuple[int, int]:
+    """A closed triangle torus of about ``n_target`` vertices (a 2:1 grid, radii jittered by 2%),
+    written as binary PLY in chunks (float32 positions, uchar/int faces, as scanners write)."""
+    b = max(3, int(np.sqrt(n_target / 2)))
+    a = 2 * b
+    n, m = a * b, 2 * a * b
+    rng = np.random.default_rng(0)
+    with open(path, "wb") as f:
+        f.write((f"ply\nformat binary_little_endian 1.0\nelement vertex {n}\nproperty float x\n"
+                 f"property float y\nproperty float z\nelement face {m}\n"
+                 "property list uchar int vertex_indices\nend_header\n").encode())
+        for r0 in range(0, a, max(1, chunk // b)):       # rows of the grid, a few million vertices at a time
+            i = np.arange(r0, min(a, r0 + max(1, chunk // b)))[:, None]
+            j = np.arange(b)[None, :]
+            u, v = 2 * np.pi * i / a, 2 * np.pi * j / b
+            r = 0.35 * (1 + 0.02 * rng.standard_normal((i.size, b)))
+            xyz = np.stack([(1 + r * np.cos(v)) * np.cos(u), (1 + r * np.cos(v)) * np.sin(u),
+                            r * np.sin(v)], -1)
+            f.write(xyz.astype("<f4").tobytes())
+        rec = np.dtype([("n", "u1"), ("i", "<i4", 3)])
+        for r0 in range(0, a, max(1, chunk // (2 * b))):
+            i = np.arange(r0, min(a, r0 + max(1, chunk // (2 * b))))[:, None]
+            j = np.arange(b)[None, :]
+            p00, p10 = i * b + j, ((i + 1) % a) * b + j
+            p01, p11 = i * b + (j + 1) % b, ((i + 1) % a) * b + (j + 1) % b
+            out = np.empty((i.size, b, 2), rec)
+            out["n"] = 3
+            out["i"][:, :, 0] = np.stack([p00, p10, p11], -1)
+            out["i"][:, :, 1] = np.stack([p00, p11, p01], -1)
+            f.write(out.tobytes())
+    return n, m
+
+
+def child_scan(src: str, dst: str) -> dict:
+    """Runs in a child process: load, one flow step, save; times and the peak resident memory."""
+    base = peak_rss_mb()
+    t0 = time.perf_counter()
+    mesh = sf.load(src)
+    t_load = time.perf_counter() - t0
+    inputs_mb = (mesh.vertices.nbytes + mesh.face_indices.nbytes + mesh.face_offsets.nbytes) / 2**20
+    after_load = peak_rss_mb()
+    print(f"  loaded {mesh.n_vertices:,} vertices, {mesh.n_faces:,} faces in {t_load:.1f} s "
+          f"(peak {after_load:.0f} MB)", file=sys.stderr, flush=True)
+    t0 = time.perf_counter()
+    out = sf.flow(mesh, 1.0)
+    t_flow = time.perf_counter() - t0
+    after_flow = peak_rss_mb()
+    print(f"  smoothed in {t_flow:.1f} s (peak {after_flow:.0f} MB)", file=sys.stderr, flush=True)
+    t0 = time.perf_counter()
+    sf.save(dst, out)
+    t_save = time.perf_counter() - t0
+    return {"n": mesh.n_vertices, "faces": mesh.n_faces, "load": t_load, "flow": t_flow, "save": t_save,
+            "base_mb": base, "load_peak_mb": after_load, "flow_peak_mb": after_flow, "peak_mb": peak_rss_mb(),
+            "inputs_mb": inputs_mb, "solver": out.report.solver, "cg": out.report.cg_iterations,
+            "threads": str(sf.accel.current().threads)}
+
+
+def scan(count: str, folder: str | None) -> int:
+    import tempfile
+
+    n_target = parse_count(count)
+    with tempfile.TemporaryDirectory(dir=folder) as tmp:
+        src, dst = Path(tmp) / "scan.ply", Path(tmp) / "smoothed.ply"
+        t0 = time.perf_counter()
+        n, m = write_scan(src, n_target)
+        print(f"generated a {n:,}-vertex, {m:,}-triangle torus as binary PLY "
+              f"({src.stat().st_size / 2**30:.2f} GiB) in {time.perf_counter() - t0:.1f} s", file=sys.stderr)
+        res = subprocess.run([sys.executable, __file__, "--child-scan", str(src), str(dst)],
+                             stdout=subprocess.PIPE, text=True)
+        if res.returncode != 0:
+            print(f"scan of {n:,} vertices failed (exit {res.returncode})")
+            return 1
+        d = json.loads(res.stdout.strip().splitlines()[-1])
+    beyond = (d["peak_mb"] - d["base_mb"] - d["inputs_mb"]) * 2**20 / d["n"]
+    print(f"scan {d['n']:,} vertices, {d['faces']:,} triangles ({time.strftime('%Y-%m-%d')}, threads "
+          f"{d['threads']}): load {d['load']:.1f} s, flow λ=1 {d['flow']:.1f} s "
+          f"({d['flow'] / d['n'] * 1e6:.2f} µs per vertex) [{d['solver']}, CG {d['cg']}], save {d['save']:.1f} s")
+    print(f"  peak resident memory {d['peak_mb']:,.0f} MB (interpreter {d['base_mb']:.0f} MB, the mesh's arrays "
+          f"{d['inputs_mb']:,.0f} MB): {beyond:.0f} bytes per vertex beyond the input arrays, "
+          f"{(d['peak_mb'] - d['base_mb']) * 2**20 / d['n']:.0f} in all; after loading {d['load_peak_mb']:,.0f} MB, "
+          f"after the flow {d['flow_peak_mb']:,.0f} MB")
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeat", type=int, default=11)
     ap.add_argument("--quick", action="store_true", help="skip the 1M-vertex case and Blender")
     ap.add_argument("--no-blender", action="store_true")
     ap.add_argument("--child-million", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--scan", metavar="N", help="only the scan case: a generated triangle torus of N vertices "
+                                                 "(e.g. 10M) through load, one flow step and save")
+    ap.add_argument("--scan-dir", help="folder for the scan's files (default: the system's temporary folder)")
+    ap.add_argument("--child-scan", nargs=2, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.child_scan:
+        print(json.dumps(child_scan(*args.child_scan)))
+        return 0
+    if args.scan:
+        return scan(args.scan, args.scan_dir)
     if args.child_million:
         print(json.dumps(child_million(args.repeat)))
         return 0

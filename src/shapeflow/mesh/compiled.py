@@ -13,8 +13,8 @@ from numba import get_num_threads, njit, prange
 from ..accel import zeros
 
 
-def edge_data(fi, offsets, n):
-    """Same outputs as the NumPy ``Topology._edge_data``.
+def edge_data(fi, offsets, n, it=np.int64):
+    """Same outputs as the NumPy ``Topology._edge_data`` (index arrays of type ``it``).
 
     Half-edges are bucketed by their low vertex (counting sort, stable in
     corner order), then each small bucket is insertion-sorted by the high
@@ -27,13 +27,13 @@ def edge_data(fi, offsets, n):
     vt = np.int32 if n < 2**31 - 1 else np.int64
     lo = np.empty(c, vt)
     hi = np.empty(c, vt)
-    order = np.empty(c, np.int64)
+    order = np.empty(c, it)
     start = zeros(n + 1, np.int64)
     ucount = np.empty(n + 1, np.int64)
     n_e = _edge_sort(fi, offsets, n, lo, hi, order, start, ucount, get_num_threads())
-    edges = np.empty((n_e, 2), np.int64)
-    starts = np.empty(n_e + 1, np.int64)
-    corner_edge = np.empty(c, np.int64)
+    edges = np.empty((n_e, 2), it)
+    starts = np.empty(n_e + 1, it)
+    corner_edge = np.empty(c, it)
     _edge_number(n, hi, order, start, ucount, corner_edge, starts, edges)
     return edges, corner_edge, starts, order
 
