@@ -21,9 +21,21 @@ def interior_data(nnz, pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw):
     the free rows with c ≠ 0 (for the κ estimate).
     """
     data = np.empty(nnz)
-    diag = np.empty(pos_diag.size)
-    n_a, n_b, ratio = _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data, diag)
+    diag = np.empty(free.size)
+    n_a, n_b, ratio = _interior_data(True, pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data, diag)
     return data, diag, (int(n_a), int(n_b)), float(ratio)
+
+
+_NO_POS = np.zeros(0, np.int32)
+_NO_DATA = np.zeros(0)
+
+
+def interior_diag(pairs, free, c, deg, pw):
+    """:func:`interior_data` without the matrix: the diagonal, the two counts of pairs with one free
+    end, and max D/c (for the lean layout, :class:`~shapeflow.linalg.pairs.PairMatrix`)."""
+    diag = np.empty(free.size)
+    n_a, n_b, ratio = _interior_data(False, _NO_POS, _NO_POS, _NO_POS, pairs, free, c, deg, pw, _NO_DATA, diag)
+    return diag, (int(n_a), int(n_b)), float(ratio)
 
 
 def interior_coupling(pairs, free, pw, mixed):
@@ -60,9 +72,10 @@ def _interior_coupling(pairs, free, pw, n_a, r, s, e):
 
 
 @njit(cache=True)
-def _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data, diag):
+def _interior_data(fill, pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data, diag):
+    """``fill``: also write the matrix entries into ``data`` at the pattern's positions."""
     ratio = 0.0
-    for i in range(pos_diag.size):
+    for i in range(free.size):
         if free[i]:
             d = c[i] + deg[i]
             if c[i] != 0.0:
@@ -72,10 +85,11 @@ def _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data
         else:
             d = 1.0
         diag[i] = d
-        data[np.uint64(pos_diag[i])] = d
+        if fill:
+            data[np.uint64(pos_diag[i])] = d
     n_a = 0
     n_b = 0
-    for p in range(pos_upper.size):
+    for p in range(pairs.shape[0]):
         fa = free[np.uint64(pairs[p, 0])]
         fb = free[np.uint64(pairs[p, 1])]
         v = -pw[p] if (fa and fb) else 0.0
@@ -83,8 +97,9 @@ def _interior_data(pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw, data
             n_a += 1
         elif fb and not fa:
             n_b += 1
-        data[np.uint64(pos_upper[p])] = v
-        data[np.uint64(pos_lower[p])] = v
+        if fill:
+            data[np.uint64(pos_upper[p])] = v
+            data[np.uint64(pos_lower[p])] = v
     return n_a, n_b, ratio
 
 

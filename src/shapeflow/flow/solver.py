@@ -11,11 +11,13 @@ from .. import accel, params
 from ..errors import ParameterError
 from ..geometry.measures import pow2_exponent
 from ..geometry.normals import has_normals, refresh_normals
+from ..linalg.pairs import PairMatrix
 from ..linalg.spd import DEFAULT_RTOL
 from ..mesh import Mesh
 from ..mesh.convert import as_mesh
 from ..operators.pattern import check_scheme
 from ..types import Axes, Weights
+from . import system
 from .fixed import fixed_steps
 from .options import COMPAT_MODES, FLOW_SOLVERS, MEAN_RESTORE_FROM, check_run_options, resolve_weights
 from .report import FlowReport
@@ -179,7 +181,8 @@ class FlowSolver:
                     report.locked_vertices = np.flatnonzero(operator.locked)
                     report.locked = int(report.locked_vertices.size)
                     report.degenerate_triangles = operator.n_bad
-                interior_sys = self.systems.interior(operator, lam, n_solves, report.notes)
+                interior_sys = self.systems.interior(operator, lam, n_solves, report.notes,
+                                                     lean=mesh.n_vertices >= system.LEAN_FROM)
                 boundary_sys = self.systems.boundary(operator, lam_b)
                 if interior_sys is not None:
                     report.solver = interior_sys.solver.method
@@ -195,6 +198,7 @@ class FlowSolver:
                     break
             if it == 0 and update == "fixed" and iterations >= 2 and not preserve_volume and boundary_sys is None \
                     and interior_sys is not None and interior_sys.solver.method == "cg" \
+                    and not isinstance(interior_sys.A, PairMatrix) \
                     and self.solver_method in ("auto", "chebyshev"):
                 V_all = fixed_steps(V, lam, int(iterations), interior_sys, ax, report, operator.pattern, self.rtol)
                 if V_all is not None:

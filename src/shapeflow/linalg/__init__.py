@@ -4,6 +4,8 @@
   Cholesky, SuperLU) with the cost model that picks one;
 * :mod:`~shapeflow.linalg.chebyshev` — several fixed-operator steps as one
   Chebyshev expansion;
+* :mod:`~shapeflow.linalg.pairs` — :class:`PairMatrix`, a symmetric matrix as its diagonal and
+  vertex pairs (the lean layout of very large systems);
 * :mod:`~shapeflow.linalg.multishift` — multi-shift CG (a family of shifted
   systems from one Krylov space);
 * :mod:`~shapeflow.linalg.local` — :class:`LocalSolver` for streams of small
@@ -18,7 +20,9 @@ Compiled twins: :mod:`~shapeflow.linalg.compiled` (CG, Clenshaw step) and
 from .chebyshev import chebyshev_coefficients, chebyshev_steps
 from .local import LocalSolver
 from .multishift import MultiShiftResult, multishift_cg
+from .pairs import PairMatrix
 from .spd import DEFAULT_RTOL, METHODS, SolveStats, SPDSolver, cholesky_available, choose_method
 
 __all__ = ["SPDSolver", "SolveStats", "METHODS", "DEFAULT_RTOL", "choose_method", "cholesky_available",
-           "chebyshev_coefficients", "chebyshev_steps", "multishift_cg", "MultiShiftResult", "LocalSolver"]
+           "chebyshev_coefficients", "chebyshev_steps", "multishift_cg", "MultiShiftResult", "LocalSolver",
+           "PairMatrix"]

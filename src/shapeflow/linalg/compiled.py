@@ -124,15 +124,29 @@ def pcg3(indptr, indices, data, minv, B, X, rtol, maxiter, overwrite_b=False):
     # first touched here, not from both threads inside the loops
     work = zeros((2 if overwrite_b else 3, B.shape[0], 3))
     R = B if overwrite_b else work[2]
-    return _pcg3(indptr, indices, data, minv, B, X, rtol, maxiter, work[0], work[1], R)
+    return _pcg3(False, indptr, indices, data, _NO_PAIRS, _NO_F8, _NO_FREE, _NO_F8, minv, B, X, rtol, maxiter,
+                 work[0], work[1], R)
+
+
+_NO_PAIRS = np.zeros((0, 2), np.int32)
+_NO_F8 = np.zeros(0)
+_NO_FREE = np.zeros(0, np.bool_)
+_NO_INT = np.zeros(1, np.int32)
+
+
+@njit(inline="always")
+def _product(use_pairs, indptr, indices, data, pairs, w, free, d, P, AP):
+    if use_pairs:
+        return _spmm_pairs_dot(pairs, w, free, d, P, AP)
+    return _spmm_dot(indptr, indices, data, P, AP, 3)
 
 
 @njit(cache=True)
-def _pcg3(indptr, indices, data, minv, B, X, rtol, maxiter, P, AP, R):
-    """R may be B itself: B is read once, before R is written."""
+def _pcg3(use_pairs, indptr, indices, data, pairs, w, free, d, minv, B, X, rtol, maxiter, P, AP, R):
+    """R may be B itself: B is read once, before R is written.  The product is A's CSR
+    (``indptr, indices, data``) or, with ``use_pairs``, a PairMatrix (``pairs, w, free, d``)."""
     n = B.shape[0]
-    k = 3
-    _spmm_dot(indptr, indices, data, X, AP, k)
+    _product(use_pairs, indptr, indices, data, pairs, w, free, d, X, AP)
     rz = np.zeros(3)
     for i in range(n):
         m = minv[i]
@@ -153,7 +167,7 @@ def _pcg3(indptr, indices, data, minv, B, X, rtol, maxiter, P, AP, R):
         if not active:
             break
         it += 1
-        pap = _spmm_dot(indptr, indices, data, P, AP, k)
+        pap = _product(use_pairs, indptr, indices, data, pairs, w, free, d, P, AP)
         for c in range(3):
             alpha[c] = rz[c] / pap[c] if (pap[c] > 0.0 and rz[c] > tol2[c]) else 0.0
         rz_new = _update_xr(X, R, P, AP, minv, alpha)
@@ -191,3 +205,41 @@ def clenshaw_step(indptr, indices, data, cinv, B1, B2, X0, H0, f, alpha, beta, c
         B2[i, 0] = f * (ci * a0 - beta * B1[i, 0]) - B2[i, 0] + cu * X0[i, 0] + ch * H0[i, 0]
         B2[i, 1] = f * (ci * a1 - beta * B1[i, 1]) - B2[i, 1] + cu * X0[i, 1] + ch * H0[i, 1]
         B2[i, 2] = f * (ci * a2 - beta * B1[i, 2]) - B2[i, 2] + cu * X0[i, 2] + ch * H0[i, 2]
+
+
+@njit(cache=True)
+def _spmm_pairs_dot(pairs, w, free, d, P, AP):
+    """AP = A P for a :class:`~shapeflow.linalg.pairs.PairMatrix` (diagonal, then the free pairs in
+    order); returns the column dots pᵀAp, summed in row order."""
+    n = P.shape[0]
+    for i in range(n):
+        di = d[i]
+        AP[i, 0] = di * P[i, 0]
+        AP[i, 1] = di * P[i, 1]
+        AP[i, 2] = di * P[i, 2]
+    for p in range(pairs.shape[0]):
+        a = np.uint64(pairs[p, 0])
+        b = np.uint64(pairs[p, 1])
+        if free[a] and free[b]:
+            wp = w[p]
+            AP[a, 0] -= wp * P[b, 0]
+            AP[a, 1] -= wp * P[b, 1]
+            AP[a, 2] -= wp * P[b, 2]
+            AP[b, 0] -= wp * P[a, 0]
+            AP[b, 1] -= wp * P[a, 1]
+            AP[b, 2] -= wp * P[a, 2]
+    out = np.zeros(3)
+    for i in range(n):
+        out[0] += AP[i, 0] * P[i, 0]
+        out[1] += AP[i, 1] * P[i, 1]
+        out[2] += AP[i, 2] * P[i, 2]
+    return out
+
+
+def pcg3_pairs(pairs, w, free, d, minv, B, X, rtol, maxiter, overwrite_b=False):
+    """:func:`pcg3` on a :class:`~shapeflow.linalg.pairs.PairMatrix` (its pairs, weights, free mask and
+    diagonal): the same iteration and stopping rule, the product by a sequential scatter (one thread,
+    so the same bits on any machine)."""
+    work = zeros((2 if overwrite_b else 3, B.shape[0], 3))
+    R = B if overwrite_b else work[2]
+    return _pcg3(True, _NO_INT, _NO_INT, _NO_F8, pairs, w, free, d, minv, B, X, rtol, maxiter, work[0], work[1], R)

@@ -30,6 +30,7 @@ import scipy.sparse as sp
 
 from .. import accel
 from ..errors import OptionalDependencyError, ParameterError
+from .pairs import PairMatrix
 
 __all__ = ["METHODS", "DEFAULT_RTOL", "cholesky_available", "estimate_cg_iterations", "cg_maxiter",
            "choose_method", "SolveStats", "SPDSolver"]
@@ -107,7 +108,7 @@ class SPDSolver:
     preconditioner (it must equal ``A.diagonal()``).
     """
 
-    def __init__(self, A: sp.csr_matrix, method: str = "cg", *, rtol: float = DEFAULT_RTOL,
+    def __init__(self, A: sp.csr_matrix | PairMatrix, method: str = "cg", *, rtol: float = DEFAULT_RTOL,
                  maxiter: int | None = None, diagonal: np.ndarray | None = None):
         if method not in METHODS or method == "auto":
             raise ParameterError(f"unknown solver {method!r}; choose one of {', '.join(METHODS)}")
@@ -146,9 +147,15 @@ class SPDSolver:
             return X
         return self._factor.solve(B)
 
+    def _csr(self) -> sp.csr_matrix:
+        """A as CSR (a :class:`PairMatrix` converts once, for the paths that need the entries)."""
+        if isinstance(self.A, PairMatrix):
+            self.A = self.A.tocsr()
+        return self.A
+
     def _factorize(self) -> None:
         self.stats.factorizations += 1
-        A = self.A.copy()
+        A = self._csr().copy()
         A.sum_duplicates()  # direct solvers need one entry per position
         if self.method == "cholesky":
             import cholespy
@@ -172,13 +179,14 @@ class SPDSolver:
         component-major, (k, n), so every update runs over contiguous length-n
         rows (an (n, 3) layout makes NumPy loop over the length-3 axis).
         """
-        A = self.A
-        n = A.shape[0]
+        n = self.A.shape[0]
         squeeze = B.ndim == 1
         fast = accel.compiled("linalg", n)
-        if fast is not None and (1 if squeeze else B.shape[1]) <= 3 and A.indices.dtype == np.int32 \
-                and A.indptr.dtype == np.int32:
+        lean = isinstance(self.A, PairMatrix)
+        if fast is not None and (1 if squeeze else B.shape[1]) <= 3 and (lean or (
+                self.A.indices.dtype == np.int32 and self.A.indptr.dtype == np.int32)):
             return self._cg_kernel(fast, B, X0, squeeze, overwrite_b)
+        A = self._csr()
         Bt = np.ascontiguousarray((B[:, None] if squeeze else B).T)
         k = Bt.shape[0]
         if X0 is None:
@@ -240,11 +248,15 @@ class SPDSolver:
             X = np.zeros((n, 3))
             if X0 is not None:
                 X[:, :k] = np.asarray(X0, dtype=np.float64).reshape(n, k)
-        data = np.ascontiguousarray(A.data, dtype=np.float64)
         maxiter = self._maxiter(n)
         reused = overwrite_b or B3 is not B
-        self.stats.iterations = int(fast.pcg3(A.indptr, A.indices, data, self._minv, B3, X, self.rtol,
-                                           maxiter, overwrite_b=reused))
+        if isinstance(A, PairMatrix):
+            its = fast.pcg3_pairs(A.pairs, A.weights, A.free, A.d, self._minv, B3, X, self.rtol, maxiter,
+                                  overwrite_b=reused)
+        else:
+            data = np.ascontiguousarray(A.data, dtype=np.float64)
+            its = fast.pcg3(A.indptr, A.indices, data, self._minv, B3, X, self.rtol, maxiter, overwrite_b=reused)
+        self.stats.iterations = int(its)
         # the kernel stops at convergence or at the cap: reaching the cap counts as not converged
         converged = self.stats.iterations < maxiter and bool(np.all(np.isfinite(X)))
         if not converged and reused and B3 is B:   # B holds the residual R = B − A X: rebuild B

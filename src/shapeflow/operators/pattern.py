@@ -10,6 +10,7 @@ returns the one cached on the mesh's topology.
 
 from __future__ import annotations
 
+import threading
 import weakref
 from functools import lru_cache
 
@@ -119,25 +120,61 @@ class OperatorPattern:
         self.n = n
         self.corner_edge = corner_edge
         self.fi = fi
-        # --- symmetric CSR pattern with diagonal (duplicates kept, columns sorted)
-        P = pairs.shape[0]
-        if fast is not None and 2 * P + n < 2**31 - 1:
-            indptr, indices, self.pos_upper, self.pos_lower, self.pos_diag = fast.pair_pattern(pairs, n)
-        else:
-            rows = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])
-            cols = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)])
-            indptr, indices, entry_at = csr_pattern(rows, cols, n)
-            pos_of = np.empty_like(entry_at)
-            pos_of[entry_at] = np.arange(entry_at.size)
-            self.pos_upper = pos_of[:P]
-            self.pos_lower = pos_of[P:2 * P]
-            self.pos_diag = pos_of[2 * P:]
-        # shared by every matrix built on this pattern: read-only, so no scipy
-        # operation can rewrite it in place for everyone
-        indptr.flags.writeable = False
-        indices.flags.writeable = False
-        self.indptr = indptr
-        self.indices = indices
+        self._csr = None
+        self._csr_lock = threading.Lock()
+
+    def _csr_arrays(self):
+        """The symmetric CSR pattern with diagonal (duplicates kept, columns sorted), built on first use:
+        ``(indptr, indices, pos_upper, pos_lower, pos_diag)``.  The flow's lean layout for very large
+        meshes (:class:`~shapeflow.linalg.pairs.PairMatrix`) never asks for it."""
+        with self._csr_lock:
+            if self._csr is None:
+                pairs, n = self.pairs, self.n
+                P = pairs.shape[0]
+                fast = accel.compiled("operators", n)
+                if fast is not None and 2 * P + n < 2**31 - 1:
+                    indptr, indices, pos_upper, pos_lower, pos_diag = fast.pair_pattern(pairs, n)
+                else:
+                    rows = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])
+                    cols = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)])
+                    indptr, indices, entry_at = csr_pattern(rows, cols, n)
+                    pos_of = np.empty_like(entry_at)
+                    pos_of[entry_at] = np.arange(entry_at.size)
+                    pos_upper, pos_lower, pos_diag = pos_of[:P], pos_of[P:2 * P], pos_of[2 * P:]
+                # shared by every matrix built on this pattern: read-only, so no scipy
+                # operation can rewrite it in place for everyone
+                indptr.flags.writeable = False
+                indices.flags.writeable = False
+                self._csr = (indptr, indices, pos_upper, pos_lower, pos_diag)
+            return self._csr
+
+    @property
+    def csr_built(self) -> bool:
+        """Whether the CSR pattern has been built (the lean flow layout never builds it)."""
+        return self._csr is not None
+
+    @property
+    def indptr(self) -> np.ndarray:
+        return self._csr_arrays()[0]
+
+    @property
+    def indices(self) -> np.ndarray:
+        return self._csr_arrays()[1]
+
+    @property
+    def pos_upper(self) -> np.ndarray:
+        """Position in ``indices`` of each pair's (first, second) entry."""
+        return self._csr_arrays()[2]
+
+    @property
+    def pos_lower(self) -> np.ndarray:
+        """Position in ``indices`` of each pair's (second, first) entry."""
+        return self._csr_arrays()[3]
+
+    @property
+    def pos_diag(self) -> np.ndarray:
+        """Position in ``indices`` of each diagonal entry."""
+        return self._csr_arrays()[4]
 
     @property
     def _topo(self):
