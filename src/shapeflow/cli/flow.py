@@ -97,9 +97,12 @@ def run(args) -> int:
         lam = args.sign * args.strength
     out_path = resolve_output(args.input, args.output, args.force, args.image)
     t0 = time.perf_counter()
-    mesh = load_mesh_arg(args.input)
+    mesh = load_mesh_arg(args.input, quiet=args.quiet, command=args.command)
     operand, kw, restore = welded_for_operator(mesh, flow_kwargs(args, mesh), args.command, args.quiet)
     note_compiling(("mesh", "operators", "flow", "linalg"), operand.n_vertices, quiet=args.quiet)
+    if not args.quiet and operand.n_vertices >= 1_000_000:
+        eprint(f"shapeflow {args.command}: solving {args.iterations} implicit step(s) on {operand.n_vertices:,} "
+               "vertices")
     with progress_callback(args.iterations, "flow", quiet=args.quiet) as cb:
         result = flow(operand, lam, progress=cb, **kw)
     report = result.report
@@ -107,7 +110,7 @@ def run(args) -> int:
     result = restore(result)
     result.report = report
     warn_degenerate_result(args.command, lam, mesh, result)
-    save_mesh(out_path, result, args.force)
+    save_mesh(out_path, result, args.force, quiet=args.quiet, command=args.command)
     if not args.quiet:
         r = report
         eprint(f"shapeflow {args.command}: λ={lam:g}, {args.iterations} iteration(s), {mesh.n_vertices} vertices: "

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import eprint, load_mesh_arg, progress_callback, resolve_output, save_mesh, write_values
+from .common import eprint, load_mesh_arg, may_need_weld, progress_callback, resolve_output, save_mesh, write_values
 from .images import add_image_options
 
 
@@ -72,7 +72,7 @@ def run(args) -> int:
         mesh = mesh.with_weights(_load_weights(args.weights, mesh.n_vertices))
     from ..geometry.weld import weld
 
-    welded = weld(mesh)
+    welded = weld(mesh) if may_need_weld(mesh) else mesh
     if welded.n_vertices < mesh.n_vertices:   # a soup or split seams would subdivide as separate patches
         if not args.quiet:
             eprint(f"shapeflow subdivide: {mesh.n_vertices - welded.n_vertices} vertices coincide with others "
