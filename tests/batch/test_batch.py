@@ -162,6 +162,8 @@ def test_killed_worker_loses_nothing(dataset, tmp_path):
         cluster.close()
     assert killed, "no worker was killed: the test did not test anything"
     assert rep.ok and len(rep.done) == len(files)
+    left = [p for p in out.rglob("*") if p.name.startswith(sb.task.WORK_PREFIX)]
+    assert left == []                    # the killed task's work folder is gone too
     recs = {r["input"]: r for r in records(out)}
     assert set(recs) == set(files) and all(r["status"] == "done" for r in recs.values())
     ref = tmp_path / "ref"

@@ -28,7 +28,7 @@ from .inputs import plan_jobs
 from .manifest import Manifest, input_stamp
 from .operation import Operation, parse_operation
 from .report import BatchReport
-from .task import run_task
+from .task import WORK_PREFIX, run_task
 
 __all__ = ["run", "local_cluster"]
 
@@ -213,8 +213,22 @@ def run(inputs: str | Sequence[str], outdir: str, operation: str | Sequence[str]
                 except Exception:   # closing a cluster that already lost its workers: nothing to keep
                     pass
             shutil.rmtree(os.path.join(manifest.state, "ended"), ignore_errors=True)
+            _sweep_work_folders(todo)
     report.seconds = time.perf_counter() - t0
     return report
+
+
+def _sweep_work_folders(jobs) -> None:
+    """Remove the work folders a file's task leaves beside its output when its worker process ended
+    mid-file (every task of this run is over, and OUTDIR's lock keeps other batches out)."""
+    for folder in {os.path.dirname(os.path.abspath(j.output)) for j in jobs}:
+        try:
+            names = os.listdir(folder)
+        except OSError:
+            continue
+        for name in names:
+            if name.startswith(WORK_PREFIX):
+                shutil.rmtree(os.path.join(folder, name), ignore_errors=True)
 
 
 def _dashboard(c, local: bool) -> str | None:

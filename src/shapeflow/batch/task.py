@@ -33,7 +33,10 @@ from .estimate import estimate_peak_bytes, header_vertices
 from .inputs import is_url
 from .operation import Operation, parse_operation, run_steps
 
-__all__ = ["process_file", "run_task", "jsonable"]
+__all__ = ["process_file", "run_task", "jsonable", "WORK_PREFIX"]
+
+#: name prefix of the work folder a file's task makes beside its output (removed when it ends)
+WORK_PREFIX = ".shapeflow-batch-"
 
 
 def _rss() -> int:
@@ -155,7 +158,7 @@ def process_file(source: str, output: str, operation: str | list | Operation, *,
            "peak_rss": None, "vertices": None, "faces": None, "report": None, "messages": []}
     parent = os.path.dirname(os.path.abspath(output))
     os.makedirs(parent, exist_ok=True)
-    work = tempfile.mkdtemp(prefix=".shapeflow-batch-", dir=parent)
+    work = tempfile.mkdtemp(prefix=WORK_PREFIX, dir=parent)
     own = sampler is None
     sampler = sampler or RssSampler()
     try:
