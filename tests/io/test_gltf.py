@@ -142,3 +142,59 @@ def test_a_textured_obj_becomes_a_gltf_with_its_uvs_and_seams(tmp_path):
     np.testing.assert_allclose(back.vertices[back.face_indices], m.vertices[m.face_indices[corners]], atol=1e-6)
     np.testing.assert_allclose(back.corner_attributes["uv"], m.corner_attributes["uv"].expand()[corners], atol=1e-7)
     assert uvs.shape[0] == pos.shape[0]
+
+
+def placed_cubes():
+    """The seamed cube as two meshes (sharing accessors), shown by a parent node (translation,
+    rotation, scale) and its child (a column-major matrix): where they sit, from scipy's rotation."""
+    from scipy.spatial.transform import Rotation
+
+    g, pos, uv, idx = cube_with_seams()
+    g.meshes.append(pygltflib.Mesh(primitives=[pygltflib.Primitive(
+        attributes=pygltflib.Attributes(POSITION=0, NORMAL=1, TEXCOORD_0=2), indices=3)]))
+    q = [0.0, 0.0, np.sin(np.pi / 6), np.cos(np.pi / 6)]                  # 60° about z, (x, y, z, w)
+    child = np.eye(4)
+    child[:3, 3] = [0.0, 3.0, 0.5]
+    g.nodes = [pygltflib.Node(mesh=0, translation=[5.0, 0.0, -1.0], rotation=q, scale=[2.0, 2.0, 0.5],
+                              children=[1], name="parent"),
+               pygltflib.Node(mesh=1, matrix=child.T.reshape(-1).tolist(), name="child")]
+    parent = np.eye(4)
+    parent[:3, :3] = Rotation.from_quat(q).as_matrix() @ np.diag([2.0, 2.0, 0.5])
+    parent[:3, 3] = [5.0, 0.0, -1.0]
+    world = [parent, parent @ child]
+    expected = np.concatenate([pos @ M[:3, :3].T + M[:3, 3] for M in world])
+    return g, expected
+
+
+def test_node_transforms_place_the_meshes_as_the_scene_shows_them(tmp_path):
+    g, expected = placed_cubes()
+    src = tmp_path / "placed.glb"
+    g.save_binary(str(src))
+    m = sf.load(src)
+    np.testing.assert_allclose(m.vertices, expected, atol=1e-5)
+    trimesh = pytest.importorskip("trimesh")
+    scene = trimesh.load(str(src), force="scene", process=False)
+    theirs = np.unique(np.round(scene.to_geometry().vertices, 4), axis=0)
+    assert np.array_equal(np.unique(np.round(m.vertices, 4), axis=0), theirs)   # trimesh's scene graph agrees
+    # the two cubes coincide in their own coordinates, not in the scene: each welds to its 8 corners
+    assert sf.weld(m).n_vertices == 16
+    # normals follow the inverse transpose: still perpendicular to the placed faces
+    nrm = sf.mesh.attributes.expand(m.corner_attributes["normal"])
+    V, fi = m.vertices, m.face_indices.reshape(-1, 3)
+    face_n = np.cross(V[fi[:, 1]] - V[fi[:, 0]], V[fi[:, 2]] - V[fi[:, 0]])
+    assert np.allclose(np.einsum("ij,ij->i", nrm.reshape(-1, 3, 3)[:, 0], face_n), np.linalg.norm(face_n, axis=1),
+                       rtol=1e-5)
+
+
+def test_a_placed_scene_is_written_back_in_its_own_coordinates(tmp_path):
+    g, expected = placed_cubes()
+    src, out = tmp_path / "placed.glb", tmp_path / "out.glb"
+    g.save_binary(str(src))
+    m = sf.load(src)
+    smoothed = sf.flow(sf.weld(m), 0.5)
+    result = sf.unweld(smoothed, m, sf.weld(m))
+    sf.save(out, result)
+    back = pygltflib.GLTF2.load(str(out))
+    assert back.nodes[0].translation == [5.0, 0.0, -1.0] and back.nodes[1].matrix == g.nodes[1].matrix
+    np.testing.assert_allclose(sf.load(out).vertices, result.vertices, atol=1e-5)
+    assert not np.allclose(result.vertices, expected, atol=1e-3)     # the flow did move them

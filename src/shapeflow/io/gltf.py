@@ -1,15 +1,18 @@
 """glTF 2.0 (``.gltf`` with its buffers, ``.glb``), through pygltflib (the ``gltf`` extra).
 
 Reading: every triangle primitive of every mesh becomes part of one :class:`~shapeflow.mesh.Mesh`
-(the face attribute ``"primitive"`` says which), with ``TEXCOORD_0`` as the corner attribute
+(the face attribute ``"primitive"`` says which), placed where the default scene shows it (the
+world transform of the first node that shows the mesh: node matrices or translation, rotation and
+scale, parents first; normals by the inverse transpose), with ``TEXCOORD_0`` as the corner attribute
 ``"uv"``, ``NORMAL`` as the corner attribute ``"normal"`` and ``COLOR_0`` as the vertex attribute
 ``"color"``.  glTF splits vertices at UV and normal seams; the commands weld them for the
 operator (:func:`shapeflow.weld`) and write the result in the file's layout.
 
 Writing a mesh read from a glTF file with its faces unchanged (smoothing, enhancement, the
-brush) writes the file back with new positions and normals only: materials, textures, nodes,
-animations and every other accessor pass through unchanged.  Any other mesh is written as a new
-single-mesh file.  Positions are float32 in glTF.
+brush) writes the file back with new positions and normals only, in each mesh's own coordinates
+again: materials, textures, nodes, animations and every other accessor pass through unchanged.
+Any other mesh is written as a new single-mesh file, in world coordinates.  Positions are float32
+in glTF.
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import numpy as np
 from ..errors import DataLossWarning, MeshError, OptionalDependencyError
 from ..mesh import Mesh
 
-__all__ = ["read_gltf", "write_gltf", "write_glb"]
+__all__ = ["read_gltf", "write_gltf", "write_glb", "mesh_placements"]
 
 _COMPONENT = {5120: "i1", 5121: "u1", 5122: "i2", 5123: "u2", 5125: "u4", 5126: "f4"}
 _WIDTH = {"SCALAR": 1, "VEC2": 2, "VEC3": 3, "VEC4": 4}
@@ -81,9 +84,51 @@ def _load(data: bytes, name: str):
         raise MeshError(f"{name}: not a readable glTF file ({type(exc).__name__}: {exc})") from None
 
 
+def _node_matrix(node) -> np.ndarray:
+    """A node's local transform (its ``matrix``, column-major, or T·R·S)."""
+    if node.matrix is not None and len(node.matrix) == 16:
+        return np.asarray(node.matrix, np.float64).reshape(4, 4).T
+    M = np.eye(4)
+    if node.scale is not None:
+        M = np.diag([*np.asarray(node.scale, np.float64), 1.0])
+    if node.rotation is not None:
+        x, y, z, w = np.asarray(node.rotation, np.float64) / (np.linalg.norm(node.rotation) or 1.0)
+        R = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                      [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                      [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+        M = np.block([[R, np.zeros((3, 1))], [np.zeros((1, 3)), np.ones((1, 1))]]) @ M
+    if node.translation is not None:
+        T = np.eye(4)
+        T[:3, 3] = node.translation
+        M = T @ M
+    return M
+
+
+def mesh_placements(gltf) -> tuple[dict, dict]:
+    """World transform of the first node that shows each mesh in the default scene (depth first,
+    parents before children), and how many nodes show it.  Meshes no node shows are absent."""
+    first: dict = {}
+    count: dict = {}
+    nodes = gltf.nodes or []
+    scene = (gltf.scenes or [None])[gltf.scene or 0] if gltf.scenes else None
+    roots = list(scene.nodes or []) if scene is not None else list(range(len(nodes)))
+    stack = [(r, np.eye(4), 0) for r in reversed(roots)]
+    while stack:                       # over the nodes of the scene graph (a few), never vertices
+        i, parent, depth = stack.pop()
+        if not 0 <= i < len(nodes) or depth > len(nodes):
+            continue                   # a bad index or a cycle: that branch is not followed
+        M = parent @ _node_matrix(nodes[i])
+        if nodes[i].mesh is not None:
+            first.setdefault(nodes[i].mesh, M)
+            count[nodes[i].mesh] = count.get(nodes[i].mesh, 0) + 1
+        stack.extend((c, M, depth + 1) for c in reversed(nodes[i].children or []))
+    return first, count
+
+
 def read_gltf(data: bytes, name: str) -> Mesh:
     gltf = _load(data, name)
     blobs: dict = {}
+    placement, shown = mesh_placements(gltf)
     V, F, S, uv, nrm, col, prim, skipped = [], [], [], [], [], [], [], 0
     base = 0
     layout = []
@@ -92,7 +137,10 @@ def read_gltf(data: bytes, name: str) -> Mesh:
             if (p.mode if p.mode is not None else TRIANGLES) != TRIANGLES or p.attributes.POSITION is None:
                 skipped += 1
                 continue
-            pos = _accessor(gltf, p.attributes.POSITION, name, blobs).astype(np.float64)
+            M = placement.get(mi, np.eye(4))
+            if abs(np.linalg.det(M[:3, :3])) < 1e-300:
+                raise MeshError(f"{name}: mesh {mi} is shown by a node whose transform is singular (scale 0)")
+            pos = _accessor(gltf, p.attributes.POSITION, name, blobs).astype(np.float64) @ M[:3, :3].T + M[:3, 3]
             n = pos.shape[0]
             idx = (_accessor(gltf, p.indices, name, blobs).reshape(-1).astype(np.int64) if p.indices is not None
                    else np.arange(n))
@@ -105,15 +153,20 @@ def read_gltf(data: bytes, name: str) -> Mesh:
             per_corner = lambda a: a[idx]   # noqa: E731  (glTF attributes are per vertex: per corner here)
             uv.append(per_corner(_accessor(gltf, p.attributes.TEXCOORD_0, name, blobs))
                       if p.attributes.TEXCOORD_0 is not None else None)
-            nrm.append(per_corner(_accessor(gltf, p.attributes.NORMAL, name, blobs))
+            nrm.append(_placed_normals(per_corner(_accessor(gltf, p.attributes.NORMAL, name, blobs)), M)
                        if p.attributes.NORMAL is not None else None)
             col.append(_accessor(gltf, p.attributes.COLOR_0, name, blobs) if p.attributes.COLOR_0 is not None
                        else None)
             layout.append({"mesh": mi, "primitive": pi, "vertices": n, "position": p.attributes.POSITION,
-                           "normal": p.attributes.NORMAL})
+                           "normal": p.attributes.NORMAL, "matrix": M})
             base += n
     if not V:
         raise MeshError(f"{name}: no triangle mesh in the glTF file")
+    repeated = sorted(m for m, k in shown.items() if k > 1)
+    if repeated:
+        warnings.warn(DataLossWarning(f"{name}: mesh(es) {repeated} are shown by several nodes; each is read "
+                                      "once, placed by its first node (written back, every instance changes alike)"),
+                      stacklevel=3)
     if skipped:
         warnings.warn(DataLossWarning(f"{name}: {skipped} primitive(s) that are not triangles are not kept"),
                       stacklevel=3)
@@ -131,6 +184,13 @@ def read_gltf(data: bytes, name: str) -> Mesh:
                              metadata={"gltf": {"document": gltf, "layout": layout, "faces": np.concatenate(F)}})
     except MeshError as exc:
         raise MeshError(f"{name}: {exc}") from None
+
+
+def _placed_normals(normals: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """Normals through the inverse transpose of M's linear part, unit length again."""
+    out = normals.astype(np.float64) @ np.linalg.inv(M[:3, :3])
+    ln = np.linalg.norm(out, axis=1, keepdims=True)
+    return np.divide(out, ln, out=np.zeros_like(out), where=ln > 0)
 
 
 def write_glb(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None) -> None:
@@ -188,9 +248,13 @@ def _update(gltf, blob: bytearray, layout: list, mesh: Mesh) -> None:
     base = 0
     for item in layout:
         n = item["vertices"]
-        _write_accessor(gltf, blob, item["position"], mesh.vertices[base:base + n])
+        M = np.asarray(item.get("matrix", np.eye(4)))
+        A_inv = np.linalg.inv(M[:3, :3])     # back into the mesh's own coordinates
+        _write_accessor(gltf, blob, item["position"], (mesh.vertices[base:base + n] - M[:3, 3]) @ A_inv.T)
         if item["normal"] is not None:
-            _write_accessor(gltf, blob, item["normal"], nrm[base:base + n])
+            local = nrm[base:base + n] @ M[:3, :3]
+            ln = np.linalg.norm(local, axis=1, keepdims=True)
+            _write_accessor(gltf, blob, item["normal"], np.divide(local, ln, out=np.zeros_like(local), where=ln > 0))
         base += n
     gltf.buffers[0].uri = None
     gltf.buffers[0].byteLength = len(blob)
