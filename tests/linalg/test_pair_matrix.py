@@ -58,6 +58,7 @@ def test_solver_on_pairs_meets_tolerance_and_falls_back(kernels):
         np.testing.assert_allclose(X, exact, rtol=1e-10, atol=1e-10)
 
 
+@pytest.mark.skipif(not accel.available(), reason="the lean layout needs the compiled kernels (numba)")
 @pytest.mark.parametrize("make", [lambda: icosphere(3), lambda: cube_sphere(10, mix=0.4),
                                   lambda: grid(14, jitter=0.2, mix=0.5, z=lambda x, y: 0.1 * x * y)],
                          ids=["triangles", "hybrid", "open-hybrid"])
