@@ -40,8 +40,8 @@ def build_parser(*, raising: bool = False) -> argparse.ArgumentParser:
         prog="shapeflow",
         description="Smooth and enhance polygon meshes (triangles, quads, n-gons) "
         "with the hybrid quad/triangle Laplace-Beltrami operator.",
-        epilog="Mesh arguments accept OBJ, PLY (ASCII/binary) and OFF files, or "
-        "'example:NAME' for a mesh bundled with shapeflow (example:spot, example:spot_cage).",
+        epilog="Mesh arguments accept OBJ, PLY, OFF and STL files, glTF/GLB (shapeflow[gltf]) and USD "
+        "(shapeflow[usd]), or 'example:NAME' for a mesh bundled with shapeflow (example:spot, example:spot_cage).",
     )
     parser.add_argument("--version", action="version", version=f"shapeflow {__version__}")
     parser.add_argument("--debug", action="store_true",

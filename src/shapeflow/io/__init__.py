@@ -14,7 +14,16 @@ ext       read                                        write
                                                       (``binary=False``:
                                                       ASCII)
 ``.off``  ``OFF`` and ``[ST][C][N]OFF`` (ASCII)       ``OFF``
+``.stl``  binary and ASCII (a triangle soup)          binary (``binary=False``:
+                                                      ASCII)
+``.gltf`` glTF 2.0 / GLB (``gltf`` extra)             the input's document with
+``.glb``                                              new positions, or new
+``.usd``  OpenUSD text and crate (``usd`` extra)      the input's stage with
+``.usda``                                             new points, or new
+``.usdc``
 ========  ==========================================  =====================
+
+Modules :mod:`~shapeflow.io.gltf` and :mod:`~shapeflow.io.usd` say what each keeps.
 
 Every reader keeps the face structure exactly as written: faces are never
 triangulated, face order and corner order are kept, triangles, quads and
@@ -89,6 +98,24 @@ def _write_glb(f, mesh, *, binary=None):
     write_glb(f, mesh, binary=binary)
 
 
+def _read_usd(data, name):   # usd-core is imported on first use
+    from .usd import read_usd
+
+    return read_usd(data, name)
+
+
+def _write_usda(f, mesh, *, binary=None):
+    from .usd import write_usd
+
+    write_usd(f, mesh, binary=binary, ext=".usda")
+
+
+def _write_usdc(f, mesh, *, binary=None):
+    from .usd import write_usd
+
+    write_usd(f, mesh, binary=True, ext=".usdc")
+
+
 
 __all__ = [
     "load", "save", "load_weights", "save_weights", "atomic_write", "output_target",
@@ -101,3 +128,5 @@ register_format(MeshFormat("PLY", (".ply",), read_ply, write_ply, attributes=Tru
 register_format(MeshFormat("STL", (".stl",), read_stl, write_stl, binary=True))
 register_format(MeshFormat("glTF", (".gltf",), _read_gltf, _write_gltf, attributes=True, binary=True))
 register_format(MeshFormat("GLB", (".glb",), _read_gltf, _write_glb, attributes=True, binary=True))
+register_format(MeshFormat("USDA", (".usda",), _read_usd, _write_usda, attributes=True, binary=True))
+register_format(MeshFormat("USD", (".usd", ".usdc"), _read_usd, _write_usdc, attributes=True, binary=True))
