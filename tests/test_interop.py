@@ -87,3 +87,26 @@ def test_a_cli_like_trip_through_files_keeps_the_library_objects_honest(tmp_path
         warnings.simplefilter("ignore", DataLossWarning)
         sf.save(tmp_path / "a.ply", spot.to_pyvista())
     assert faces(sf.load(tmp_path / "a.ply")) == faces(spot)
+
+
+def test_open3d_round_trip_with_colours(spot):
+    """A real open3d TriangleMesh: built by to_open3d, passed to every call as it is, read back;
+    open3d's own surface area checks the triangles it holds."""
+    o3d = pytest.importorskip("open3d", reason="open3d (a test dependency on Linux x86-64) is not installed")
+    colors = np.random.default_rng(0).random((spot.n_vertices, 3))
+    with pytest.warns(DataLossWarning, match="fans"):
+        om = spot.with_attributes(color=colors).to_open3d()
+    assert isinstance(om, o3d.geometry.TriangleMesh)
+    assert len(om.triangles) == sum(k - 2 for k in spot.face_sizes)
+    np.testing.assert_array_equal(np.asarray(om.vertices), spot.vertices)
+    np.testing.assert_array_equal(np.asarray(om.vertex_colors), colors)
+    area = sum(0.5 * np.linalg.norm(np.cross(spot.vertices[f[k]] - spot.vertices[f[0]],
+                                              spot.vertices[f[k + 1]] - spot.vertices[f[0]]))
+               for f in faces(spot) for k in range(1, len(f) - 1))
+    assert abs(om.get_surface_area() - area) < 1e-12 * area
+    back = sf.Mesh.from_open3d(om)
+    np.testing.assert_array_equal(back.attributes["color"], colors)
+    assert back.n_faces == len(om.triangles)
+    np.testing.assert_array_equal(sf.smooth(om, 2.0).vertices, sf.smooth(back, 2.0).vertices)
+    out = sf.enhance(back, 10.0).to_open3d()
+    assert out.has_vertex_colors() and not np.allclose(np.asarray(out.vertices), spot.vertices)

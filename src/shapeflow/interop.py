@@ -99,5 +99,5 @@ def to_open3d(mesh) -> object:
                                     o3d.utility.Vector3iVector(_triangles_only(mesh, "open3d").astype(np.int32)))
     color = mesh.attributes.get("color")
     if color is not None and color.ndim == 2 and color.shape[1] == 3:
-        out.vertex_colors = o3d.utility.Vector3dVector(np.asarray(color, np.float64))
+        out.vertex_colors = o3d.utility.Vector3dVector(np.array(color, np.float64))   # a copy: open3d needs it writable
     return out
