@@ -85,9 +85,10 @@ def test_obj_glued_tags_are_errors(tmp_path, text, match):
 def test_obj_other_tags_still_read(tmp_path):
     p = tmp_path / "m.obj"
     p.write_bytes(b"mtllib a.mtl\no thing\ng grp\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvn 0 0 1\nusemtl m-1.x\n"
-                  b"s off\nf 1/1/1 2/1/1 3/1/1\nl 1 2\n")
-    with pytest.warns(sf.DataLossWarning, match="1 'l' line"):
+                  b"s off\nf 1/1/1 2/1/1 3/1/1\nl 1 2\ncurv 0 1 1 2\nl -1 -2\n")
+    with pytest.warns(sf.DataLossWarning, match="1 'curv' line, 1 'l \\(relative indices\\)' line"):
         m = sio.load(p)
+    assert m.metadata["obj"]["elements"] == [("l", "1 2")]      # kept: written back after the faces
     assert np.array_equal(m.vertices, TRI_V) and m.faces_as_lists() == [[0, 1, 2]]
     assert m.corner_attributes["uv"].index.tolist() == [0, 0, 0]
     assert m.face_attributes["material"].values().tolist() == ["m-1.x"]

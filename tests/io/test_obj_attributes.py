@@ -115,12 +115,14 @@ def sample(tmp_path):
 
 
 def test_everything_is_read(sample):
-    with pytest.warns(DataLossWarning, match="not kept .*: 1 'l' line$"):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataLossWarning)      # nothing in the sample is lost
         m = sf.load(sample)
     assert_matches_reference(m, reference_read(sample))
     np.testing.assert_array_equal(m.attributes["color"][:2], [[1, 0, 0], [0, 1, 0]])
     assert m.metadata["obj"]["comments"] == ["a hand-made asset"]
-    assert m.metadata["obj"]["dropped"] == {"l": 1}
+    assert m.metadata["obj"]["dropped"] == {}
+    assert [tag for tag, _ in m.metadata["obj"]["elements"]] == ["l"]
     assert m.face_attributes["object"].values().tolist() == ["crate"] * 5
 
 
@@ -235,8 +237,11 @@ def test_the_command_line_names_what_it_cannot_keep(sample, tmp_path, capsys):
     from shapeflow.cli import main
 
     assert main(["smooth", str(sample), str(tmp_path / "out.obj"), "--strength", "1", "-q"]) == 0
-    err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"shapeflow smooth: warning: {sample}: not kept (they describe no polygon): 1 'l' line"]
+    assert capsys.readouterr().err == ""                     # the polyline is written back
+    polylines = [ln for ln in sample.read_text().splitlines() if ln.startswith("l ")]
+    assert [ln for ln in (tmp_path / "out.obj").read_text().splitlines() if ln.startswith("l ")] == polylines
+    assert main(["subdivide", str(sample), str(tmp_path / "sub.obj"), "-q"]) == 0
+    assert "'l'/'p'/'t' lines refer to the input's vertex numbering" in capsys.readouterr().err
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DataLossWarning)
         back, m = sf.load(tmp_path / "out.obj"), sf.load(sample)

@@ -43,8 +43,9 @@ also travel in side files (``.npy`` or ``.txt``, one number a line) with
 OBJ details: ``v x y z [w]`` and ``v x y z r g b [a]`` (x y z are used);
 ``f`` (and the old ``fo``) with ``a``, ``a/b``, ``a//c`` and ``a/b/c`` corners
 and negative (relative) indices; ``#`` comments, blank lines and backslash line
-continuations; every other tag (``vt vn vp o g s usemtl mtllib l p``,
-OpenSubdiv's ``t crease ...``, ...) is skipped.  A file without any ``v`` line
+continuations; what :mod:`shapeflow.io.obj` keeps (``vt vn o g s usemtl mtllib``,
+``l p`` and OpenSubdiv's ``t``) comes back on writing, and every other tag is
+counted and named in a warning.  A file without any ``v`` line
 is an error.  OFF details: ``#`` comments, the counts on the header line or the
 next, ``k i1 .. ik [colour]`` faces, extra per-vertex values (colours,
 normals, texture coordinates) ignored; binary OFF and 4D/nD OFF are not

@@ -5,9 +5,12 @@ vertex attribute ``"color"``), texture coordinates ``vt`` and normals ``vn`` as
 the corner attributes ``"uv"`` and ``"normal"`` (tables and per-corner indices, so
 their sharing and seams come back unchanged), ``usemtl``, ``g``, ``o`` and ``s``
 as the face attributes ``"material"``, ``"group"``, ``"object"`` and ``"smooth"``,
-and ``mtllib`` lines and comments as metadata.  Lines that describe no polygon
-(``l``, ``p``, curves and surfaces) cannot be kept: they are counted in
-``mesh.metadata["obj"]["dropped"]`` and named in a :class:`~shapeflow.errors.DataLossWarning`.
+and ``mtllib`` lines and comments as metadata.  Polylines ``l``, points ``p`` and OpenSubdiv tags
+``t`` (creases, corners, holes) refer to vertex numbers: they are kept as metadata and written
+back after the faces while the vertices keep their numbering (smoothing, enhancement, the brush),
+with a warning otherwise.  Curves and surfaces (and ``l``/``p``/``t`` lines with relative indices)
+cannot be kept: they are counted in ``mesh.metadata["obj"]["dropped"]`` and named in a
+:class:`~shapeflow.errors.DataLossWarning`.
 """
 
 from __future__ import annotations
@@ -59,6 +62,30 @@ def _texts(txt: Text, recs: np.ndarray) -> list[str]:
     return joined.split("\n")[:-1]
 
 
+def _vertex_elements(txt: Text, recs: np.ndarray) -> tuple[list, dict]:
+    """The ``l`` (polylines), ``p`` (points) and ``t`` (OpenSubdiv tags: creases, corners, holes) lines
+    as ``(tag, rest of the line)``, kept to be written back while the vertex numbering holds; lines
+    with relative (negative) indices would change meaning at the end of a new file: counted instead."""
+    if recs.size == 0:
+        return [], {}
+    rf = txt.rec_first[recs]
+    tags = [txt.data[int(txt.start[r]):int(txt.end[r])].decode("latin-1") for r in rf]
+    rests = _texts(txt, recs)
+    keep, relative = [], {}
+    for tag, rest in zip(tags, rests):      # one per polyline or tag line (few), never per vertex
+        words = rest.split()
+        if tag == "t" and len(words) >= 2:
+            n_int = int(words[1].split("/")[0]) if words[1].split("/")[0].isdigit() else 0
+            ints = words[2:2 + n_int]
+        else:
+            ints = [w.split("/")[0] for w in words]
+        if any(w.startswith("-") for w in ints):
+            relative[f"{tag} (relative indices)"] = relative.get(f"{tag} (relative indices)", 0) + 1
+        else:
+            keep.append((tag, rest))
+    return keep, relative
+
+
 def read_obj(data: bytes, name: str) -> Mesh:
     data = text_data(data, name, "OBJ")
     comments = [c.decode("utf-8", "replace").rstrip() for c in _COMMENT.findall(data)]
@@ -72,7 +99,8 @@ def read_obj(data: bytes, name: str) -> Mesh:
     is_v, is_vt, is_vn = _tag(a, s, tlen, b"v"), _tag(a, s, tlen, b"vt"), _tag(a, s, tlen, b"vn")
     is_f = _tag(a, s, tlen, b"f") | _tag(a, s, tlen, b"fo")
     is_state = {tag: _tag(a, s, tlen, tag) for tag in (*FACE_TAGS, b"mtllib")}
-    known = is_v | is_vt | is_vn | is_f | np.logical_or.reduce(list(is_state.values()))
+    is_elem = _tag(a, s, tlen, b"l") | _tag(a, s, tlen, b"p") | _tag(a, s, tlen, b"t")
+    known = is_v | is_vt | is_vn | is_f | is_elem | np.logical_or.reduce(list(is_state.values()))
     other = np.flatnonzero(~known)
     dropped = _check_tags(txt, a, other, s[other], tlen[other]) if other.size else {}
     vrec = np.flatnonzero(is_v)
@@ -87,8 +115,14 @@ def read_obj(data: bytes, name: str) -> Mesh:
         corner["normal"] = Indexed(_table(txt, np.flatnonzero(is_vn), (3,), "normal"), vn_idx)
     face = {attr: _labels(txt, np.flatnonzero(is_state[tag]), frec)
             for tag, attr in FACE_TAGS.items() if is_state[tag].any()}
+    elements, relative = _vertex_elements(txt, np.flatnonzero(is_elem))
+    if relative:
+        dropped = {**dropped, **relative}
     meta = {"comments": [c for c in comments if not c.startswith(_OWN_HEADER)],
             "mtllib": _texts(txt, np.flatnonzero(is_state[b"mtllib"])), "dropped": dropped}
+    if elements:
+        meta["elements"] = elements
+        meta["elements_of"] = (vrec.size, idx)     # the vertex numbering the lines refer to
     if dropped:
         what = ", ".join(f"{n} '{t}' line{'s' if n > 1 else ''}" for t, n in dropped.items())
         warnings.warn(DataLossWarning(f"{name}: not kept (they describe no polygon): {what}"), stacklevel=3)
@@ -305,6 +339,14 @@ def write_obj(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None) -> None:
     if nrm is not None:
         write_rows(f, "vn %r %r %r\n", np.asarray(nrm.values, np.float64))
     _write_faces(f, mesh, uv, nrm, _state_lines(mesh))
+    elements = meta.get("elements")
+    if elements:
+        n, idx = meta["elements_of"]
+        if n == mesh.n_vertices and np.array_equal(idx, mesh.face_indices):
+            f.write("".join(f"{tag} {rest}\n" for tag, rest in elements).encode("utf-8"))
+        else:
+            warnings.warn(DataLossWarning(f"{len(elements)} 'l'/'p'/'t' lines refer to the input's vertex numbering, "
+                                          "which changed (subdivision?): not written"), stacklevel=4)
 
 
 def _as_indexed(attr):
