@@ -4,9 +4,11 @@ The figures per vertex were measured on 2026-11-24 on a generated 2M-vertex tria
 torus (binary PLY), as the process's peak resident memory above its size before
 loading: load 288 B/vertex; load + one flow step 708; + one Catmull-Clark level
 1,624 (per input vertex; 6× the vertices after a level of triangles, 4× of quads);
-a family of 10 members 1,937.  The estimate rounds these up; it exists so that a
-file far over ``--max-memory`` fails at once with its estimate instead of taking a
-worker down.
+a family of 10 members 1,937 (before that day's int32 edge arrays and the lean layout
+for 8M+ vertices, which lowered a flow step to 610 bytes per vertex at 2M vertices and 419
+at 50M: ``bench_flow.py --scan``).  The estimate rounds the first figures up, so it errs
+high; it exists so that a file far over ``--max-memory`` fails at once with its estimate
+instead of taking a worker down.
 """
 
 from __future__ import annotations
