@@ -27,7 +27,7 @@ LAYERS = {
     "linalg": 4,
     "flow": 5, "sculpt": 5, "subdivision": 5,
     "io": 6, "rendering": 6, "examples": 6, "interop": 6,
-    "cli": 7, "blender": 7, "batch": 7, "__init__": 7, "__main__": 7,
+    "cli": 7, "blender": 7, "batch": 7, "studio": 7, "__init__": 7, "__main__": 7,
 }
 #: allowed imports against the layering: (importer, imported) -> reason
 UPWARD = {

@@ -1,0 +1,116 @@
+"""The studio's model: weights painted with a smooth falloff, brush dabs, the family of shapes
+solved in the background, and one undo history over all of them."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+from meshgen import cube_sphere
+
+import shapeflow as sf
+from shapeflow.studio import StudioSession
+
+
+@pytest.fixture
+def mesh():
+    return cube_sphere(8, mix=0.3)          # quads and triangles, closed
+
+
+def test_paint_follows_the_falloff_and_undoes_exactly(mesh):
+    s = StudioSession(mesh)
+    c, r = mesh.vertices[5], 0.6
+    touched = s.paint(c, r, value=0.25, strength=0.8)
+    d = np.linalg.norm(mesh.vertices - c, axis=1)
+    inside = d < r
+    assert set(touched.tolist()) == set(np.flatnonzero(inside).tolist())
+    expected = np.ones(mesh.n_vertices)
+    t = d[inside] / r
+    expected[inside] = 1.0 + (0.25 - 1.0) * 0.8 * (1 - t ** 2) ** 2        # (1 − t²)², from its definition
+    np.testing.assert_allclose(s.weights, expected, rtol=0, atol=1e-15)
+    after = s.weights
+    assert s.undo() and np.array_equal(s.weights, np.ones(mesh.n_vertices))
+    assert s.redo() and np.array_equal(s.weights, after)                   # both ways exactly
+    with pytest.raises(sf.ParameterError, match="radius"):
+        s.paint(c, 0.0)
+    with pytest.raises(sf.ParameterError, match="value"):
+        s.paint(c, 0.5, value=2.0)
+
+
+def test_dabs_use_the_painted_weights(mesh):
+    s = StudioSession(mesh)
+    c = mesh.vertices[5]
+    s.paint(c, 0.5, value=0.0)                       # zero at the centre, rising towards the rim
+    w = s.weights
+    moved = s.dab(c, radius=0.7, lam=-40.0)
+    ref = sf.Brush(mesh, radius=0.7, lam=-40.0, weights=w)
+    ref_moved = ref.dab(c)
+    assert set(moved.tolist()) == set(np.asarray(ref_moved).tolist())
+    np.testing.assert_array_equal(s.vertices, ref.vertices)
+    assert np.array_equal(s.vertices[w == 0.0], mesh.vertices[w == 0.0])   # weight 0: untouched
+    before = s.vertices
+    s.dab(c + 0.05, radius=0.7, lam=-40.0, inflate=True, strength=0.1)
+    assert not np.array_equal(s.vertices, before)
+    assert s.undo() and np.array_equal(s.vertices, before)
+    assert s.undo() and np.array_equal(s.vertices, mesh.vertices)          # back to the input, exactly
+    assert s.undo() and np.array_equal(s.weights, np.ones(mesh.n_vertices))
+    assert not s.undo()
+
+
+def test_family_in_the_background_and_its_blends(mesh):
+    s = StudioSession(mesh)
+    s.paint(mesh.vertices[0], 0.8, value=0.3)
+    w = s.weights
+    s.solve_family([0.0, -10.0, -20.0, -40.0])
+    deadline = time.monotonic() + 60
+    while s.family_status().state == "running" and time.monotonic() < deadline:
+        time.sleep(0.01)
+    st = s.family_status()
+    assert st.state == "done" and st.done == st.total == 4 and st.lams == [-40.0, -20.0, -10.0, 0.0]
+    for lam in (-10.0, -40.0):                      # members: the flow itself, to the CG tolerance
+        ref = sf.flow(mesh, lam, weights=w).vertices
+        assert np.abs(s.shape_at(lam) - ref).max() <= 1e-6 * np.abs(ref - mesh.vertices).max()
+    np.testing.assert_allclose(s.shape_at(-15.0), 0.5 * (s.shape_at(-10.0) + s.shape_at(-20.0)), atol=1e-15)
+    np.testing.assert_array_equal(s.shape_at(-100.0), s.shape_at(-40.0))     # clamped to the range
+    s.apply_shape(-15.0)
+    np.testing.assert_array_equal(s.vertices, s.shape_at(-15.0))
+    assert s.undo() and np.array_equal(s.vertices, mesh.vertices)
+
+
+def test_a_new_solve_supersedes_and_failures_are_reported(mesh):
+    s = StudioSession(mesh)
+    with pytest.raises(sf.ParameterError, match="no family"):
+        s.shape_at(-1.0)
+    s.solve_family([0.0, -5.0])
+    s.solve_family([0.0, -7.0], wait=True)          # the first one's result is dropped
+    time.sleep(0.2)
+    assert s.family_status().lams == [-7.0, 0.0]
+    s.solve_family([-1.0], wait=True, strategy="no such strategy")
+    st = s.family_status()
+    assert st.state == "failed" and "strategy" in st.error
+
+
+def test_history_length_files_and_threads(mesh, tmp_path):
+    s = StudioSession(mesh, undo_steps=2)
+    for k in range(4):
+        s.paint(mesh.vertices[k * 7], 0.5, value=0.0)
+    assert s.undo() and s.undo() and not s.undo()
+    s.paint(mesh.vertices[3], 0.5, value=0.5)
+    s.save(tmp_path / "painted.ply")
+    back = StudioSession.open(tmp_path / "painted.ply")
+    np.testing.assert_array_equal(back.weights, s.weights)
+    # several threads painting at once: every stroke lands, each as one step
+    t = StudioSession(mesh, undo_steps=100)
+    threads = [threading.Thread(target=lambda k=k: [t.paint(mesh.vertices[(k * 13 + j) % mesh.n_vertices], 0.3,
+                                                             value=0.0) for j in range(5)]) for k in range(4)]
+    for th in threads:
+        th.start()
+    for th in threads:
+        th.join()
+    assert t.version == 20
+    undone = 0
+    while t.undo():
+        undone += 1
+    assert undone == 20 and np.array_equal(t.weights, np.ones(mesh.n_vertices))
