@@ -21,7 +21,7 @@ from ..errors import DataLossWarning, OptionalDependencyError, ParameterError, S
 
 #: subcommand modules, in the order ``--help`` lists them
 # (flow.py registers flow, enhance and smooth)
-COMMANDS = ["info", "flow", "subdivide", "family", "brush", "render", "curvature", "batch"]
+COMMANDS = ["info", "flow", "subdivide", "family", "brush", "render", "curvature", "batch", "studio"]
 
 
 class RaisingParser(argparse.ArgumentParser):

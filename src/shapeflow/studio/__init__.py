@@ -1,9 +1,22 @@
-"""ShapeFlow Studio: interactive shape enhancement, weight painting and the brush.
+"""ShapeFlow Studio: shape enhancement, weight painting and the brush in a web browser.
 
-This package holds the studio's model, :class:`StudioSession`; the browser front end and
-its server build on it.
+``shapeflow studio MESH`` on the command line, :func:`studio` in Python or Jupyter (the
+``studio`` extra: aiohttp; the page's three.js ships in the package).  :class:`StudioSession`
+is the model a page edits; :mod:`~shapeflow.studio.server` serves it.  Guide: docs/studio.md.
 """
 
 from .session import FamilyStatus, StudioSession, smooth_falloff
 
-__all__ = ["StudioSession", "FamilyStatus", "smooth_falloff"]
+__all__ = ["StudioSession", "FamilyStatus", "smooth_falloff", "StudioServer", "studio"]
+
+
+def __getattr__(name):            # the server needs aiohttp: imported on first use
+    if name in ("StudioServer", "studio"):
+        from ..errors import OptionalDependencyError
+
+        try:
+            from . import run
+        except ImportError as exc:
+            raise OptionalDependencyError("aiohttp", "studio", "the studio's server") from exc
+        return getattr(run, name)
+    raise AttributeError(name)

@@ -1,0 +1,41 @@
+"""``shapeflow studio [MESH]``: the studio in a web browser (needs ``shapeflow[studio]``)."""
+
+from __future__ import annotations
+
+from .common import eprint, load_mesh_arg
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "studio", help="enhance, paint weights and sculpt in a web browser (needs shapeflow[studio])",
+        description="Start ShapeFlow Studio on MESH (default example:spot) and open it in the browser: a λ slider "
+                    "that walks a family of shapes, weight painting, the enhancement and inflate brushes, undo, "
+                    "download in every format.  Serves on 127.0.0.1 only unless --host says otherwise; Ctrl-C ends it.")
+    p.add_argument("mesh", nargs="?", default="example:spot", metavar="MESH",
+                   help="a mesh file or example:NAME (default example:spot)")
+    p.add_argument("--port", type=int, default=8765, help="port (default 8765; 0 picks a free one)")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="address to listen on (default 127.0.0.1: this machine only; 0.0.0.0 serves the network)")
+    p.add_argument("--no-browser", action="store_true", help="print the address, do not open a browser")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    import threading
+
+    from ..studio import StudioServer
+
+    mesh = load_mesh_arg(args.mesh)
+    server = StudioServer(mesh, host=args.host, port=args.port)
+    eprint(f"shapeflow studio: {mesh.n_vertices:,} vertices at {server.url} (Ctrl-C ends it)")
+    if args.host not in ("127.0.0.1", "localhost", "::1"):
+        eprint(f"shapeflow studio: warning: listening on {args.host}: anyone who can reach this machine can edit")
+    if not args.no_browser:
+        import webbrowser
+
+        webbrowser.open(server.url)
+    try:
+        threading.Event().wait()
+    finally:
+        server.stop()
+    return 0

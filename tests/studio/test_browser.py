@@ -1,0 +1,168 @@
+"""The studio driven in a real headless Chromium (Debian's chromium and chromium-driver, WebGL on
+SwiftShader): the page shows what the server's session holds after each step, and the pixels
+change where a stroke went and nowhere far from it."""
+
+from __future__ import annotations
+
+import io
+import json
+import shutil
+import time
+import urllib.error
+import urllib.request
+
+import numpy as np
+import pytest
+
+import shapeflow as sf
+
+pytest.importorskip("aiohttp", reason="aiohttp (the 'studio' extra) is not installed")
+webdriver = pytest.importorskip("selenium.webdriver", reason="selenium (a test dependency) is not installed")
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+DRIVER = shutil.which("chromedriver")
+pytestmark = pytest.mark.skipif(not (CHROMIUM and DRIVER), reason="chromium and chromedriver are not installed")
+
+
+@pytest.fixture(scope="module")
+def server():
+    from shapeflow.studio import StudioServer
+
+    with StudioServer(sf.load_example("spot"), lams=[0.0, -20.0, -40.0, -60.0, -80.0]) as srv:
+        yield srv
+
+
+@pytest.fixture(scope="module")
+def page(server):
+    from selenium.webdriver.chrome.options import Options
+    from selenium.webdriver.chrome.service import Service
+
+    opts = Options()
+    for a in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--use-angle=swiftshader",
+              "--enable-unsafe-swiftshader", "--window-size=1100,760"):
+        opts.add_argument(a)
+    opts.binary_location = CHROMIUM
+    d = webdriver.Chrome(service=Service(DRIVER), options=opts)
+    d.get(server.url)
+    wait(d, "return window.studio && window.studio.ready && window.studio.family.state === 'done'")
+    yield d
+    d.quit()
+
+
+def wait(d, script, timeout=60.0):
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        if d.execute_script(script):
+            return
+        time.sleep(0.05)
+    st = d.execute_script("const s = window.studio || {}; return [s.pending, s.version, s.error, s.family];")
+    raise AssertionError(f"timed out waiting for: {script} (page: pending, version, error, family = {st})")
+
+
+def settled(d, server, timeout=60.0):
+    """The page has its answers and has drawn since: no edit in flight, and the session's version
+    (read afresh: a stroke's last edits may still be arriving) shown for a quarter of a second."""
+    t0, since = time.monotonic(), None
+    while time.monotonic() - t0 < timeout:
+        ok = d.execute_script(f"return window.studio.pending === 0 && "
+                              f"window.studio.version === {server.session.version}")
+        since = (since or time.monotonic()) if ok else None
+        if since is not None and time.monotonic() - since > 0.25:
+            break
+        time.sleep(0.05)
+    else:
+        raise AssertionError("the page did not settle")
+    frames = d.execute_script("return window.studio.frames")
+    wait(d, f"return window.studio.frames > {frames + 1}")
+
+
+def shown(d) -> np.ndarray:
+    return np.array(d.execute_script("return window.studio.positions()"), np.float32).reshape(-1, 3)
+
+
+def pixels(d) -> np.ndarray:
+    from PIL import Image
+
+    return np.asarray(Image.open(io.BytesIO(d.get_screenshot_as_png())).convert("RGB"), np.int16)
+
+
+def canvas_box(d):
+    r = d.execute_script("const r = document.querySelector('#view canvas').getBoundingClientRect();"
+                         "return [r.left, r.top, r.width, r.height];")
+    return [int(round(v)) for v in r]
+
+
+def test_the_slider_shows_the_family(page, server):
+    before = shown(page)
+    np.testing.assert_array_equal(before, server.session.vertices.astype(np.float32))
+    page.execute_script("const s = document.getElementById('lam'); s.value = -50; s.dispatchEvent(new Event('input'));")
+    wait(page, "return window.studio.pending === 0")
+    np.testing.assert_array_equal(shown(page), server.session.shape_at(-50.0).astype(np.float32))
+    assert not np.array_equal(shown(page), before)
+    page.execute_script("const s = document.getElementById('lam'); s.value = 0; s.dispatchEvent(new Event('input'));")
+    wait(page, "return window.studio.pending === 0")
+    np.testing.assert_array_equal(shown(page), before)
+
+
+def test_a_paint_stroke_changes_the_weights_and_only_the_pixels_near_it(page, server):
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    settled(page, server)
+    page.execute_script("document.getElementById('mode').value = 'erase';")
+    left, top, width, height = canvas_box(page)
+    img0 = pixels(page)
+    version = server.session.version
+    canvas = page.find_element("css selector", "#view canvas")
+    chain = ActionChains(page).move_to_element_with_offset(canvas, -40, 0).click_and_hold()
+    for dx in range(-30, 41, 10):
+        chain = chain.move_to_element_with_offset(canvas, dx, 0).pause(0.1)
+    chain.release().perform()
+    wait(page, f"return window.studio.version > {version}")
+    settled(page, server)
+    w = server.session.weights
+    assert (w < 1.0).sum() > 5 and w.min() < 0.9
+    np.testing.assert_array_equal(np.array(page.execute_script("return window.studio.weightList()"), np.float32),
+                                  w.astype(np.float32))
+    img1 = pixels(page)
+    cx, cy = left + width // 2, top + height // 2
+    near = np.abs(img1[cy - 40:cy + 40, cx - 80:cx + 80] - img0[cy - 40:cy + 40, cx - 80:cx + 80]).sum(axis=2) > 30
+    far = np.abs(img1[top + 5:top + 60, left + width - 120:left + width - 5]
+                 - img0[top + 5:top + 60, left + width - 120:left + width - 5]).sum(axis=2) > 30
+    assert near.sum() > 200 and far.sum() == 0
+
+    while server.session.can_undo:              # the stroke was several paint steps: undo them all
+        page.find_element("id", "undo").click()
+        settled(page, server)
+    assert np.array_equal(server.session.weights, np.ones(server.session.mesh.n_vertices))
+    page.execute_script("document.getElementById('mode').value = 'view';")
+
+
+def test_a_dab_a_second_tab_and_the_download(page, server):
+    settled(page, server)
+    c = server.session.vertices[100].tolist()
+    page.execute_script(f"window.studio.send({{op: 'dab', center: {json.dumps(c)}, radius: 0.2, lam: -60}});")
+    settled(page, server)
+    moved = server.session.vertices
+    np.testing.assert_array_equal(shown(page), moved.astype(np.float32))
+    assert not np.array_equal(moved, sf.load_example("spot").vertices)
+    first = page.current_window_handle
+    page.switch_to.new_window("tab")                 # a second tab sees the same session
+    page.get(server.url)
+    wait(page, "return window.studio && window.studio.ready")
+    np.testing.assert_array_equal(shown(page), moved.astype(np.float32))
+    page.close()
+    page.switch_to.window(first)
+    body = urllib.request.urlopen(server.url + "download/result.ply").read()
+    path = f"{pytest.importorskip('tempfile').mkdtemp()}/result.ply"
+    with open(path, "wb") as f:
+        f.write(body)
+    back = sf.load(path)
+    np.testing.assert_array_equal(back.vertices, moved)
+    np.testing.assert_array_equal(back.weights, server.session.weights)
+
+
+def test_the_server_is_local_and_serves_only_its_own_files(server):
+    assert server.url.startswith("http://127.0.0.1:")
+    for bad in ("static/../server.py", "static/%2e%2e/server.py", "download/x.exe"):
+        with pytest.raises(urllib.error.HTTPError) as exc:
+            urllib.request.urlopen(server.url + bad)
+        assert exc.value.code in (400, 403, 404)
