@@ -166,3 +166,27 @@ def test_the_server_is_local_and_serves_only_its_own_files(server):
         with pytest.raises(urllib.error.HTTPError) as exc:
             urllib.request.urlopen(server.url + bad)
         assert exc.value.code in (400, 403, 404)
+
+
+def test_colour_fields_and_the_brush_circle(page, server):
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    settled(page, server)
+    page.execute_script("const c = document.getElementById('colours'); c.value = 'curvature';"
+                        "c.dispatchEvent(new Event('change'));")
+    wait(page, "return window.studio.field && window.studio.field.name === 'curvature' && window.studio.pending === 0")
+    values = np.array(page.execute_script("return Array.from(window.studio.field.values)"), np.float32)
+    np.testing.assert_array_equal(values, server.session.field("curvature").astype(np.float32))
+    assert page.execute_script("return document.getElementById('legend').style.display") == "block"
+    ref = sf.mean_curvature(server.session.mesh, area="barycentric")     # the library's own curvature
+    np.testing.assert_allclose(values, ref, rtol=1e-6, atol=1e-6 * np.abs(ref).max())
+    page.execute_script("document.getElementById('mode').value = 'sculpt';")
+    canvas = page.find_element("css selector", "#view canvas")
+    ActionChains(page).move_to_element_with_offset(canvas, 5, 5).move_to_element_with_offset(canvas, 0, 0).perform()
+    wait(page, "return window.studio.ring && window.studio.ring.visible")
+    center = np.array(page.execute_script("return window.studio.ring.center"))
+    V = server.session.vertices
+    assert np.linalg.norm(V - center, axis=1).min() < 0.05 * np.linalg.norm(np.ptp(V, axis=0))   # on the surface
+    page.execute_script("document.getElementById('mode').value = 'view';"
+                        "const c = document.getElementById('colours'); c.value = 'weights';"
+                        "c.dispatchEvent(new Event('change'));")

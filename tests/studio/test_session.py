@@ -114,3 +114,21 @@ def test_history_length_files_and_threads(mesh, tmp_path):
     while t.undo():
         undone += 1
     assert undone == 20 and np.array_equal(t.weights, np.ones(mesh.n_vertices))
+
+
+def test_colour_fields_on_a_sphere():
+    from meshgen import icosphere
+
+    ball = icosphere(3, r=2.0)
+    s = StudioSession(ball)
+    h = s.field("curvature")
+    assert abs(np.median(h) - 0.5) < 0.02 and h.min() > 0.4            # H = 1/r on a sphere
+    assert np.array_equal(s.field("displacement"), np.zeros(ball.n_vertices))
+    s.solve_family([0.0, -30.0], wait=True)
+    s.apply_shape(-30.0)                              # enhancing a sphere mostly inflates it
+    d = s.field("displacement")
+    grown = np.linalg.norm(s.vertices, axis=1) - 2.0
+    np.testing.assert_allclose(d, grown, rtol=0.05, atol=1e-3 * 2.0)   # along the normal: radial here
+    assert np.array_equal(s.field("weights"), np.ones(ball.n_vertices))
+    with pytest.raises(sf.ParameterError, match="unknown field"):
+        s.field("colour")

@@ -9,9 +9,11 @@ WebSocket carries positions as raw float32 frames.
 Protocol.  The server sends JSON text messages (``{"type": ...}``) and binary frames that
 start with a 4-byte tag: ``POS0`` float32 positions (n, 3), ``TRI0`` uint32 triangles (the
 faces' fans, for drawing), ``EDG0`` uint32 edge pairs (the real polygon edges, for the
-wireframe), ``WGT0`` float32 weights (n,).  The page sends JSON: ``{"op": "lam", "value"}``,
-``{"op": "paint", "center", "radius", "value"}``, ``{"op": "dab", "center", "radius", "lam",
-"inflate"}``, ``{"op": "apply", "value"}``, ``{"op": "undo"}``, ``{"op": "redo"}``.
+wireframe), ``WGT0`` float32 weights (n,), ``FLD0`` float32 values of a colour field (n,).
+The page sends JSON: ``{"op": "lam", "value"}``, ``{"op": "paint", "center", "radius",
+"value"}``, ``{"op": "dab", "center", "radius", "lam", "inflate"}``, ``{"op": "apply",
+"value"}``, ``{"op": "undo"}``, ``{"op": "redo"}``, ``{"op": "field", "name"}`` (weights,
+curvature or displacement: :meth:`StudioSession.field`).
 ``GET /download/NAME.EXT`` returns the current mesh in any format shapeflow writes.
 
 Every tab shares the server's session: a second tab sees the same shape, a closed tab loses
@@ -99,7 +101,8 @@ async def _handle(hub: _Hub, msg: dict):
         st = s.family_status()
         V = s.shape_at(hub.lam) if st.state == "done" else s.vertices
         return [_frame(b"POS0", V, "<f4"), hub.state()]
-    hub.stale = True         # every other operation edits the shape or the weights
+    if op != "field":
+        hub.stale = True     # every other operation edits the shape or the weights
     if op == "paint":
         await loop.run_in_executor(None, lambda: s.paint(msg["center"], float(msg["radius"]),
                                                          value=float(msg.get("value", 1.0)),
@@ -117,6 +120,10 @@ async def _handle(hub: _Hub, msg: dict):
     if op in ("undo", "redo"):
         (s.undo if op == "undo" else s.redo)()
         return [_frame(b"POS0", s.vertices, "<f4"), _frame(b"WGT0", s.weights, "<f4"), hub.state()]
+    if op == "field":
+        values = await loop.run_in_executor(None, lambda: s.field(str(msg["name"])))
+        return [_frame(b"FLD0", values, "<f4"), {"type": "field", "name": str(msg["name"]),
+                                                  "version": s.version}]
     if op == "solve":
         lams = [float(x) for x in msg.get("lams", hub.lams)]
         hub.lams = sorted(lams, reverse=True)

@@ -262,6 +262,27 @@ class StudioSession:
             V = self.shape_at(lam)
             self._record("family", np.arange(self._V.shape[0]), V, None)
 
+    # --- colour fields ---------------------------------------------------
+    FIELDS = ("weights", "curvature", "displacement")
+
+    def field(self, name: str) -> np.ndarray:
+        """Per-vertex values to colour the surface by: the weights, the signed mean curvature
+        (barycentric areas: it converges to H), or the displacement from the input along the
+        input's vertex normals (> 0 outwards)."""
+        if name not in self.FIELDS:
+            raise ParameterError(f"unknown field {name!r}; choose one of {', '.join(self.FIELDS)}")
+        with self._lock:
+            if name == "weights":
+                return self._w.copy()
+            mesh = self._base.with_vertices(self._V.copy())
+            if name == "curvature":
+                from ..operators.curvature import mean_curvature
+
+                return mean_curvature(mesh, area="barycentric")
+            from ..geometry.normals import vertex_normals
+
+            return np.einsum("ij,ij->i", self._V - self._base.vertices, vertex_normals(self._base))
+
     # --- files -----------------------------------------------------------
     @classmethod
     def open(cls, path, **kw) -> "StudioSession":

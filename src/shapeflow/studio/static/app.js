@@ -61,21 +61,45 @@ function setPositions(buf) {
   const attr = geometry.getAttribute("position");
   attr.array.set(p); attr.needsUpdate = true;
   geometry.computeVertexNormals(); geometry.computeBoundingSphere();
+  studio.positionsAt = performance.now();
+  if (studio.editAt !== null) { studio.awaitingFrame = studio.editAt; studio.editAt = null; }
 }
+// latency of an edit: from the pointer event to the end of the first frame drawn with its answer
+studio.editAt = null; studio.awaitingFrame = null; studio.latencies = [];
 
 function setWeights(buf) {
   studio.weights = new Float32Array(buf, 4);
   paintColours();
 }
 
+const diverging = (t, out, k) => {        // t in [-1, 1]: blue, white, red (coolwarm's ends)
+  const a = Math.min(1, Math.abs(t));
+  const end = t < 0 ? [0.23, 0.3, 0.75] : [0.71, 0.02, 0.15];
+  out[k] = 0.95 + (end[0] - 0.95) * a; out[k + 1] = 0.95 + (end[1] - 0.95) * a; out[k + 2] = 0.95 + (end[2] - 0.95) * a;
+};
+
 function paintColours() {
   if (!geometry || !studio.weights) return;
-  const c = geometry.getAttribute("color");
+  const c = geometry.getAttribute("color"), mode = $("colours").value;
+  const field = studio.field && studio.field.name === mode ? studio.field.values : null;
+  let scale = 1;
+  if (field) {              // a robust symmetric range: the 98th percentile of |value|
+    const a = Array.from(field, Math.abs).sort((x, y) => x - y);
+    scale = a[Math.floor(0.98 * (a.length - 1))] || 1;
+    $("legend-lo").textContent = (-scale).toPrecision(3); $("legend-hi").textContent = scale.toPrecision(3);
+  }
+  $("legend").style.display = field ? "block" : "none";
   for (let i = 0; i < n; i++) {
-    if ($("show-weights").checked) weightColour(studio.weights[i], c.array, 3 * i);
+    if (mode === "weights") weightColour(studio.weights[i], c.array, 3 * i);
+    else if (field) diverging(field[i] / scale, c.array, 3 * i);
     else { c.array[3 * i] = 0.82; c.array[3 * i + 1] = 0.8; c.array[3 * i + 2] = 0.76; }
   }
   c.needsUpdate = true;
+}
+function requestField() {
+  const mode = $("colours").value;
+  if (mode === "curvature" || mode === "displacement") send({ op: "field", name: mode });
+  else paintColours();
 }
 
 // --- the server connection -------------------------------------------------
@@ -87,7 +111,15 @@ ws.onmessage = (ev) => {
   if (typeof ev.data === "string") {
     const m = JSON.parse(ev.data);
     if (m.type === "mesh") { n = m.n_vertices; }
-    else if (m.type === "state") { state(m); studio.pending = Math.max(0, studio.pending - 1); }
+    else if (m.type === "state") {
+      const changed = m.version !== studio.version;
+      state(m); studio.pending = Math.max(0, studio.pending - 1);
+      if (changed && $("colours").value !== "weights" && $("colours").value !== "none") requestField();
+    }
+    else if (m.type === "field") {
+      studio.field = { name: m.name, version: m.version, values: studio.fieldValues };
+      studio.pending = Math.max(0, studio.pending - 1); paintColours();
+    }
     else if (m.type === "error") {
       studio.error = m.message; $("error").textContent = m.message; studio.pending = Math.max(0, studio.pending - 1);
     }
@@ -98,6 +130,7 @@ ws.onmessage = (ev) => {
   else if (tag === "EDG0") edges = new Uint32Array(ev.data.slice(4));
   else if (tag === "POS0") setPositions(ev.data);
   else if (tag === "WGT0") setWeights(ev.data);
+  else if (tag === "FLD0") studio.fieldValues = new Float32Array(ev.data.slice(4));
 };
 ws.onclose = () => { $("status").textContent = "disconnected: restart shapeflow studio and reload"; };
 
@@ -124,7 +157,7 @@ $("apply").onclick = () => send({ op: "apply", value: Number($("lam").value) });
 $("undo").onclick = () => send({ op: "undo" });
 $("redo").onclick = () => send({ op: "redo" });
 $("wire").onchange = () => { if (wire) wire.visible = $("wire").checked; };
-$("show-weights").onchange = paintColours;
+$("colours").onchange = requestField;
 const showRadius = () => { $("radius-value").textContent = Number($("radius").value).toPrecision(3); };
 $("radius").addEventListener("input", showRadius);
 $("brush-lam").addEventListener("input", () => { $("brush-lam-value").textContent = $("brush-lam").value; });
@@ -154,6 +187,7 @@ function edit(e) {
   if (!p) return;
   const center = [p.x, p.y, p.z], radius = Number($("radius").value);
   waiting = true;
+  studio.editAt = e.timeStamp;
   const invert = e.ctrlKey;
   if (mode === "paint" || mode === "erase") {
     send({ op: "paint", center, radius, value: (mode === "paint") !== invert ? 1.0 : 0.0, strength: 0.5 });
@@ -167,7 +201,28 @@ renderer.domElement.addEventListener("pointerdown", (e) => {
   if ($("mode").value === "view" || !hit(e)) return;
   stroking = true; controls.enabled = false; edit(e);
 });
-renderer.domElement.addEventListener("pointermove", (e) => { if (stroking) edit(e); });
+// the brush circle: a ring on the surface under the pointer, its radius the brush's
+const ring = new THREE.Mesh(new THREE.RingGeometry(0.94, 1.0, 64),
+                            new THREE.MeshBasicMaterial({ color: 0xffcc44, side: THREE.DoubleSide, depthTest: false }));
+ring.visible = false;
+ring.renderOrder = 2;
+scene.add(ring);
+function moveRing(e) {
+  const on = $("mode").value !== "view" && surface;
+  const r = renderer.domElement.getBoundingClientRect();
+  pointer.set(((e.clientX - r.left) / r.width) * 2 - 1, -((e.clientY - r.top) / r.height) * 2 + 1);
+  raycaster.setFromCamera(pointer, camera);
+  const h = on ? raycaster.intersectObject(surface, false) : [];
+  ring.visible = h.length > 0;
+  if (!ring.visible) return;
+  const normal = h[0].face.normal.clone().transformDirection(surface.matrixWorld);
+  ring.position.copy(h[0].point);
+  ring.quaternion.setFromUnitVectors(new THREE.Vector3(0, 0, 1), normal);
+  ring.scale.setScalar(Number($("radius").value));
+  studio.ring = { visible: true, center: ring.position.toArray() };
+}
+renderer.domElement.addEventListener("pointermove", (e) => { moveRing(e); if (stroking) edit(e); });
+renderer.domElement.addEventListener("pointerleave", () => { ring.visible = false; });
 window.addEventListener("pointerup", () => { stroking = false; controls.enabled = true; });
 const clearWaiting = ws.onmessage;
 ws.onmessage = (ev) => { clearWaiting(ev); if (typeof ev.data === "string") waiting = false; };
@@ -180,4 +235,10 @@ function resize() {
 }
 window.addEventListener("resize", resize);
 resize();
-renderer.setAnimationLoop(() => { controls.update(); renderer.render(scene, camera); studio.frames++; });
+renderer.setAnimationLoop(() => {
+  controls.update(); renderer.render(scene, camera); studio.frames++;
+  if (studio.awaitingFrame !== null) {
+    renderer.getContext().finish();                 // the frame is drawn, not just queued
+    studio.latencies.push(performance.now() - studio.awaitingFrame); studio.awaitingFrame = null;
+  }
+});

@@ -1,0 +1,115 @@
+"""The studio's responsiveness, measured in the browser: dab latency and family scrubbing.
+
+    python benchmarks/bench_studio.py [--levels 2] [--dabs 40]
+
+Spot subdivided ``--levels`` times (2: 46,850 vertices) in ``shapeflow studio``, driven in headless
+Chromium (Debian's chromium and chromium-driver; WebGL on SwiftShader, the CPU renderer, so the
+frame times are an upper bound of a machine with a GPU).  Dab latency: from the pointer event of a
+drag over the model (the enhancement brush, radius 5% of the model's size) to the end of the first
+frame drawn with the server's answer (``gl.finish()``), per dab.  Scrubbing: the λ slider moved to
+the next member at every animation frame for 3 s; frames drawn and position updates received per
+second.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+import time
+
+import numpy as np
+from common import SHARED  # noqa: F401,E402  (first: it puts src/ on the path)
+
+import shapeflow as sf  # noqa: E402
+
+
+def driver():
+    from selenium import webdriver
+    from selenium.webdriver.chrome.options import Options
+    from selenium.webdriver.chrome.service import Service
+
+    opts = Options()
+    for a in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--use-angle=swiftshader",
+              "--enable-unsafe-swiftshader", "--window-size=1200,800"):
+        opts.add_argument(a)
+    opts.binary_location = shutil.which("chromium")
+    return webdriver.Chrome(service=Service(shutil.which("chromedriver")), options=opts)
+
+
+def wait(d, script, timeout=300.0):
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        if d.execute_script(script):
+            return
+        time.sleep(0.05)
+    raise SystemExit(f"timed out: {script}")
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--levels", type=int, default=2)
+    ap.add_argument("--dabs", type=int, default=40)
+    a = ap.parse_args()
+    if not (shutil.which("chromium") and shutil.which("chromedriver")):
+        print("needs Debian's chromium and chromium-driver", file=sys.stderr)
+        return 2
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    from shapeflow.studio import StudioServer
+
+    mesh = sf.subdivide(sf.load_example("spot"), a.levels)
+    with StudioServer(mesh) as srv:
+        d = driver()
+        try:
+            t0 = time.monotonic()
+            d.get(srv.url)
+            wait(d, "return window.studio && window.studio.ready")
+            t_open = time.monotonic() - t0
+            wait(d, "return window.studio.family && window.studio.family.state === 'done'")
+            t_family = time.monotonic() - t0
+            size = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
+            d.execute_script(f"document.getElementById('mode').value = 'sculpt';"
+                             f"const r = document.getElementById('radius'); r.value = {0.05 * size};")
+            canvas = d.find_element("css selector", "#view canvas")
+            chain = ActionChains(d).move_to_element_with_offset(canvas, -120, 20).click_and_hold()
+            for k in range(a.dabs):
+                chain = chain.move_to_element_with_offset(canvas, -120 + 6 * k, 20 - (k % 5)).pause(0.08)
+            chain.release().perform()
+            wait(d, "return window.studio.pending === 0 && window.studio.awaitingFrame === null")
+            lat = d.execute_script("return window.studio.latencies")
+            d.execute_script("document.getElementById('mode').value = 'view';")
+            idle = d.execute_async_script("""
+                const done = arguments[0], f0 = window.studio.frames, t0 = performance.now();
+                setTimeout(() => done((window.studio.frames - f0) / ((performance.now() - t0) / 1000)), 2000);""")
+            scrub = d.execute_async_script("""
+                const done = arguments[0], s = document.getElementById('lam'), lams = window.studio.lams;
+                const f0 = window.studio.frames, t0 = performance.now(); let k = 0, updates = 0, last = null;
+                function step() {
+                  if (window.studio.positionsAt !== last) { updates++; last = window.studio.positionsAt; }
+                  if (performance.now() - t0 > 3000) {
+                    const dt = (performance.now() - t0) / 1000;
+                    done([(window.studio.frames - f0) / dt, updates / dt]); return;
+                  }
+                  s.value = lams[k++ % lams.length]; s.dispatchEvent(new Event('input'));
+                  requestAnimationFrame(step);
+                }
+                requestAnimationFrame(step);""")
+        finally:
+            d.quit()
+    print(f"shapeflow studio, {mesh.n_vertices:,} vertices ({time.strftime('%Y-%m-%d')}, {os.cpu_count()} cores, "
+          f"headless Chromium with SwiftShader)")
+    print(f"page ready {t_open:.1f} s after opening; family of {len(srv.session.family_status().lams)} shapes "
+          f"ready at {t_family:.1f} s")
+    if lat:
+        q = np.percentile(lat, [50, 95])
+        print(f"dab latency, pointer event to drawn frame: median {q[0]:.0f} ms, 95th percentile {q[1]:.0f} ms "
+              f"({len(lat)} dabs; target 50 ms)")
+    print(f"drawing with nothing changing: {idle:.1f} frames/s")
+    print(f"scrubbing the family: {scrub[0]:.1f} frames/s drawn, {scrub[1]:.1f} shapes/s received (target 30)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
