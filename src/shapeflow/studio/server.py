@@ -9,7 +9,8 @@ WebSocket carries positions as raw float32 frames.
 Protocol.  The server sends JSON text messages (``{"type": ...}``) and binary frames that
 start with a 4-byte tag: ``POS0`` float32 positions (n, 3), ``TRI0`` uint32 triangles (the
 faces' fans, for drawing), ``EDG0`` uint32 edge pairs (the real polygon edges, for the
-wireframe), ``WGT0`` float32 weights (n,), ``FLD0`` float32 values of a colour field (n,).
+wireframe), ``WGT0`` float32 weights (n,), ``FLD0`` float32 values of a colour field (n,),
+``PSUB`` some positions (uint32 count k, k uint32 indices, k × 3 float32: what a dab moved).
 The page sends JSON: ``{"op": "lam", "value"}``, ``{"op": "paint", "center", "radius",
 "value"}``, ``{"op": "dab", "center", "radius", "lam", "inflate"}``, ``{"op": "apply",
 "value"}``, ``{"op": "undo"}``, ``{"op": "redo"}``, ``{"op": "field", "name"}`` (weights,
@@ -109,10 +110,13 @@ async def _handle(hub: _Hub, msg: dict):
                                                          strength=float(msg.get("strength", 1.0))))
         return [_frame(b"WGT0", s.weights, "<f4"), hub.state()]
     if op == "dab":
-        await loop.run_in_executor(None, lambda: s.dab(msg["center"], radius=float(msg["radius"]),
-                                                       lam=float(msg.get("lam", -50.0)),
-                                                       inflate=bool(msg.get("inflate", False))))
-        return [_frame(b"POS0", s.vertices, "<f4"), hub.state()]
+        moved = await loop.run_in_executor(None, lambda: s.dab(msg["center"], radius=float(msg["radius"]),
+                                                               lam=float(msg.get("lam", -50.0)),
+                                                               inflate=bool(msg.get("inflate", False))))
+        # only the vertices the dab moved: a few thousand, not the whole mesh
+        part = (b"PSUB" + np.uint32(moved.size).tobytes() + np.ascontiguousarray(moved, "<u4").tobytes()
+                + np.ascontiguousarray(s.vertices_at(moved), "<f4").tobytes())
+        return [part, hub.state()]
     if op == "apply":
         await loop.run_in_executor(None, lambda: s.apply_shape(float(msg["value"])))
         hub.lam = 0.0

@@ -99,6 +99,11 @@ class StudioSession:
         with self._lock:
             return self._V.copy()
 
+    def vertices_at(self, idx) -> np.ndarray:
+        """The current positions of the vertices ``idx`` (a copy)."""
+        with self._lock:
+            return self._V[np.asarray(idx, np.int64)]
+
     @property
     def weights(self) -> np.ndarray:
         with self._lock:

@@ -67,6 +67,17 @@ function setPositions(buf) {
 // latency of an edit: from the pointer event to the end of the first frame drawn with its answer
 studio.editAt = null; studio.awaitingFrame = null; studio.latencies = [];
 
+function setSomePositions(buf) {          // PSUB: uint32 k, k indices, k × 3 positions
+  const k = new Uint32Array(buf, 4, 1)[0];
+  const idx = new Uint32Array(buf, 8, k), p = new Float32Array(buf, 8 + 4 * k, 3 * k);
+  const a = geometry.getAttribute("position");
+  for (let j = 0; j < k; j++) { const i = 3 * idx[j]; a.array[i] = p[3 * j]; a.array[i + 1] = p[3 * j + 1]; a.array[i + 2] = p[3 * j + 2]; }
+  a.needsUpdate = true;
+  geometry.computeVertexNormals();
+  studio.positionsAt = performance.now();
+  if (studio.editAt !== null) { studio.awaitingFrame = studio.editAt; studio.editAt = null; }
+}
+
 function setWeights(buf) {
   studio.weights = new Float32Array(buf, 4);
   paintColours();
@@ -129,6 +140,7 @@ ws.onmessage = (ev) => {
   if (tag === "TRI0") tris = new Uint32Array(ev.data.slice(4));
   else if (tag === "EDG0") edges = new Uint32Array(ev.data.slice(4));
   else if (tag === "POS0") setPositions(ev.data);
+  else if (tag === "PSUB") setSomePositions(ev.data);
   else if (tag === "WGT0") setWeights(ev.data);
   else if (tag === "FLD0") studio.fieldValues = new Float32Array(ev.data.slice(4));
 };
