@@ -132,3 +132,21 @@ def test_colour_fields_on_a_sphere():
     assert np.array_equal(s.field("weights"), np.ones(ball.n_vertices))
     with pytest.raises(sf.ParameterError, match="unknown field"):
         s.field("colour")
+
+
+def test_painting_between_dabs_reuses_the_brush_with_the_new_weights(mesh):
+    s = StudioSession(mesh)
+    c = mesh.vertices[5]
+    ref = sf.Brush(mesh, radius=0.7, lam=-40.0)
+    s.dab(c, radius=0.7, lam=-40.0)
+    ref.dab(c)
+    s.paint(c, 0.4, value=0.0)
+    ref.set_weights(s.weights)
+    s.dab(c + 0.02, radius=0.7, lam=-40.0)
+    ref.dab(c + 0.02)
+    np.testing.assert_array_equal(s.vertices, ref.vertices)
+    fresh = sf.Brush(sf.Mesh.from_csr(ref.vertices, mesh.face_sizes, mesh.face_indices), radius=0.7, lam=-40.0,
+                     weights=s.weights)
+    assert np.array_equal(ref.weights, fresh.weights)
+    with pytest.raises(sf.ParameterError, match="weights"):
+        ref.set_weights(np.full(mesh.n_vertices, 2.0))

@@ -141,6 +141,12 @@ class BrushBase:
         """Per-vertex weights W_p in [0, 1] (a copy)."""
         return self._w[self._inv]
 
+    @serialised
+    def set_weights(self, weights: Weights) -> None:
+        """Replace the per-vertex weights (None: all 1; an array, or an attribute name of the input);
+        later dabs use them, nothing already done changes.  Checked as in the constructor."""
+        self._w = resolve_weights(self._mesh0, weights)[self._perm]
+
     # --- state -------------------------------------------------------------------
     @property
     @serialised

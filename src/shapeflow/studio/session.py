@@ -86,6 +86,7 @@ class StudioSession:
         self._brush = None
         self._brush_key = None
         self.version = 0      #: increases with every change of positions or weights
+        self._shape_version = 0
 
     # --- state ---------------------------------------------------------
     @property
@@ -120,6 +121,8 @@ class StudioSession:
         self._redo.clear()
 
     def _apply(self, idx, V, w) -> None:
+        if not np.array_equal(self._V[idx], V):
+            self._shape_version += 1          # the brush holds positions: it is rebuilt when they change
         self._V[idx] = V
         self._w[idx] = w
         self.version += 1
@@ -182,12 +185,13 @@ class StudioSession:
         from ..sculpt import Brush, InflateBrush
 
         with self._lock:
-            key = (self.version, bool(inflate))
+            key = (self._shape_version, bool(inflate))
             if self._brush is None or self._brush_key != key:
                 mesh = self._base.with_vertices(self._V.copy())
                 self._brush = (InflateBrush(mesh, radius=radius, strength=strength, weights=self._w.copy())
                                if inflate else Brush(mesh, radius=radius, lam=lam, weights=self._w.copy()))
             b = self._brush
+            b.set_weights(self._w.copy())     # painted since the brush was built: no rebuild for that
             b.radius = radius
             if inflate:
                 b.strength = strength
@@ -196,7 +200,7 @@ class StudioSession:
             moved = np.asarray(b.dab(center), np.int64)
             if moved.size:
                 self._record("dab", moved, np.array(b.vertices[moved]), None)
-            self._brush_key = (self.version, bool(inflate))     # the brush holds exactly these positions
+            self._brush_key = (self._shape_version, bool(inflate))     # the brush holds exactly these positions
             return moved
 
     # --- the family of shapes ------------------------------------------
