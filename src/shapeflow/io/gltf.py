@@ -24,6 +24,7 @@ from typing import BinaryIO
 import numpy as np
 
 from ..errors import DataLossWarning, MeshError, OptionalDependencyError
+from ..geometry.placement import place, place_normals, unplace, unplace_normals
 from ..mesh import Mesh
 
 __all__ = ["read_gltf", "write_gltf", "write_glb", "mesh_placements"]
@@ -140,7 +141,7 @@ def read_gltf(data: bytes, name: str) -> Mesh:
             M = placement.get(mi, np.eye(4))
             if abs(np.linalg.det(M[:3, :3])) < 1e-300:
                 raise MeshError(f"{name}: mesh {mi} is shown by a node whose transform is singular (scale 0)")
-            pos = _accessor(gltf, p.attributes.POSITION, name, blobs).astype(np.float64) @ M[:3, :3].T + M[:3, 3]
+            pos = place(_accessor(gltf, p.attributes.POSITION, name, blobs).astype(np.float64), M)
             n = pos.shape[0]
             idx = (_accessor(gltf, p.indices, name, blobs).reshape(-1).astype(np.int64) if p.indices is not None
                    else np.arange(n))
@@ -153,7 +154,7 @@ def read_gltf(data: bytes, name: str) -> Mesh:
             per_corner = lambda a: a[idx]   # noqa: E731  (glTF attributes are per vertex: per corner here)
             uv.append(per_corner(_accessor(gltf, p.attributes.TEXCOORD_0, name, blobs))
                       if p.attributes.TEXCOORD_0 is not None else None)
-            nrm.append(_placed_normals(per_corner(_accessor(gltf, p.attributes.NORMAL, name, blobs)), M)
+            nrm.append(place_normals(per_corner(_accessor(gltf, p.attributes.NORMAL, name, blobs)), M)
                        if p.attributes.NORMAL is not None else None)
             col.append(_accessor(gltf, p.attributes.COLOR_0, name, blobs) if p.attributes.COLOR_0 is not None
                        else None)
@@ -184,13 +185,6 @@ def read_gltf(data: bytes, name: str) -> Mesh:
                              metadata={"gltf": {"document": gltf, "layout": layout, "faces": np.concatenate(F)}})
     except MeshError as exc:
         raise MeshError(f"{name}: {exc}") from None
-
-
-def _placed_normals(normals: np.ndarray, M: np.ndarray) -> np.ndarray:
-    """Normals through the inverse transpose of M's linear part, unit length again."""
-    out = normals.astype(np.float64) @ np.linalg.inv(M[:3, :3])
-    ln = np.linalg.norm(out, axis=1, keepdims=True)
-    return np.divide(out, ln, out=np.zeros_like(out), where=ln > 0)
 
 
 def write_glb(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None) -> None:
@@ -248,13 +242,10 @@ def _update(gltf, blob: bytearray, layout: list, mesh: Mesh) -> None:
     base = 0
     for item in layout:
         n = item["vertices"]
-        M = np.asarray(item.get("matrix", np.eye(4)))
-        A_inv = np.linalg.inv(M[:3, :3])     # back into the mesh's own coordinates
-        _write_accessor(gltf, blob, item["position"], (mesh.vertices[base:base + n] - M[:3, 3]) @ A_inv.T)
+        M = np.asarray(item.get("matrix", np.eye(4)))    # back into the mesh's own coordinates
+        _write_accessor(gltf, blob, item["position"], unplace(mesh.vertices[base:base + n], M))
         if item["normal"] is not None:
-            local = nrm[base:base + n] @ M[:3, :3]
-            ln = np.linalg.norm(local, axis=1, keepdims=True)
-            _write_accessor(gltf, blob, item["normal"], np.divide(local, ln, out=np.zeros_like(local), where=ln > 0))
+            _write_accessor(gltf, blob, item["normal"], unplace_normals(nrm[base:base + n], M))
         base += n
     gltf.buffers[0].uri = None
     gltf.buffers[0].byteLength = len(blob)

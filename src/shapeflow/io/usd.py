@@ -25,6 +25,7 @@ from typing import BinaryIO
 import numpy as np
 
 from ..errors import DataLossWarning, MeshError, OptionalDependencyError
+from ..geometry.placement import place, place_normals, unplace, unplace_normals
 from ..mesh import Mesh
 
 __all__ = ["read_usd", "write_usd"]
@@ -100,7 +101,7 @@ def read_usd(data: bytes, name: str) -> Mesh:
         M = _world(UsdGeom, Usd, prim)
         if abs(np.linalg.det(M[:3, :3])) < 1e-300:
             raise MeshError(f"{name}: {prim.GetPath()} has a singular transform (scale 0)")
-        V.append(P @ M[:3, :3].T + M[:3, 3])
+        V.append(place(P, M))
         S.append(c)
         F.append(i + base)
         obj.append(np.full(c.size, len(layout)))
@@ -112,7 +113,7 @@ def read_usd(data: bytes, name: str) -> Mesh:
         if nv is not None:
             nn = np.asarray(nv, dtype=np.float64).reshape(-1, 3)
             nn = nn[i] if nn.shape[0] == P.shape[0] and n_interp != UsdGeom.Tokens.faceVarying else nn
-            nrm.append(_placed(nn, M) if nn.shape[0] == i.size else None)
+            nrm.append(place_normals(nn, M) if nn.shape[0] == i.size else None)
         else:
             nrm.append(None)
         dc, dc_interp = _primvar(UsdGeom, prim, "displayColor", c, i)
@@ -151,12 +152,6 @@ def _assemble(name, stage, V, S, F, uv, nrm, col, obj, layout) -> Mesh:
         raise MeshError(f"{name}: {exc}") from None
 
 
-def _placed(normals: np.ndarray, M: np.ndarray) -> np.ndarray:
-    out = normals @ np.linalg.inv(M[:3, :3])
-    ln = np.linalg.norm(out, axis=1, keepdims=True)
-    return np.divide(out, ln, out=np.zeros_like(out), where=ln > 0)
-
-
 def write_usd(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None, ext: str = ".usda") -> None:
     """The stage as USD text (``.usda``) or crate (``.usdc``; ``.usd`` is crate)."""
     Usd, UsdGeom, Sdf, Gf, Vt = _pxr()
@@ -191,13 +186,11 @@ def _update(stage, layout: list, mesh: Mesh, UsdGeom, Vt, Gf) -> None:
     for item in layout:
         n = item["vertices"]
         M = np.asarray(item["matrix"])
-        A_inv = np.linalg.inv(M[:3, :3])
-        local = (mesh.vertices[base:base + n] - M[:3, 3]) @ A_inv.T
+        local = unplace(mesh.vertices[base:base + n], M)
         prim = UsdGeom.Mesh(stage.GetPrimAtPath(item["path"]))
         prim.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(local, np.float32)))
         if item["normals"] is not None:
-            ln = nrm[base:base + n] @ M[:3, :3]
-            ln /= np.maximum(np.linalg.norm(ln, axis=1, keepdims=True), 1e-300)
+            ln = unplace_normals(nrm[base:base + n], M)
             if item["normals"] == str(UsdGeom.Tokens.faceVarying):
                 idx = np.asarray(prim.GetFaceVertexIndicesAttr().Get(), dtype=np.int64)
                 ln = ln[idx]

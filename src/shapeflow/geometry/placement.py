@@ -1,0 +1,36 @@
+"""Affine placements (a 4×4 matrix M, column vectors): points and normals into the placed frame and back.
+
+Scene formats (glTF nodes, USD transforms) keep each mesh in its own coordinates and place it with
+M; the readers bring positions and normals into the scene and the writers take them back.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["place", "unplace", "place_normals", "unplace_normals"]
+
+
+def place(points: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """M applied to (n, 3) points: A p + t."""
+    return points @ M[:3, :3].T + M[:3, 3]
+
+
+def unplace(points: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`place`: A⁻¹ (p − t)."""
+    return (points - M[:3, 3]) @ np.linalg.inv(M[:3, :3]).T
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    ln = np.linalg.norm(v, axis=1, keepdims=True)
+    return np.divide(v, ln, out=np.zeros_like(v), where=ln > 0)
+
+
+def place_normals(normals: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """Normals through the inverse transpose of M's linear part, unit length again (zero stays zero)."""
+    return _unit(np.asarray(normals, np.float64) @ np.linalg.inv(M[:3, :3]))
+
+
+def unplace_normals(normals: np.ndarray, M: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`place_normals`: through M's linear part transposed, unit length again."""
+    return _unit(np.asarray(normals, np.float64) @ M[:3, :3])
