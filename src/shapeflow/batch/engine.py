@@ -28,7 +28,7 @@ from .inputs import plan_jobs
 from .manifest import Manifest, input_stamp
 from .operation import Operation, parse_operation
 from .report import BatchReport
-from .task import WORK_PREFIX, run_task
+from .task import WORK_PREFIX, ended_reason, failed_record, run_task
 
 __all__ = ["run", "local_cluster"]
 
@@ -101,11 +101,6 @@ def _check(workers, timeout, max_memory, retries) -> None:
     params.integer("retries", retries, lo=0, hi=100)
 
 
-def _failed(job, error: str) -> dict:
-    return {"input": job.source, "output": job.output, "status": "failed", "error": error, "seconds": 0.0,
-            "peak_rss": None, "vertices": None, "faces": None, "report": None, "messages": []}
-
-
 def _outcome(fut, job, marker: str) -> dict:
     """The record of a finished future, whatever ended it."""
     try:
@@ -114,15 +109,13 @@ def _outcome(fut, job, marker: str) -> dict:
         from distributed import KilledWorker
 
         if isinstance(exc, KilledWorker):
-            if os.path.exists(marker):
-                import json
-
-                with open(marker) as f:
-                    return _failed(job, json.load(f).get("reason", "its worker ended"))
+            reason = ended_reason(marker)
+            if reason is not None:
+                return failed_record(job.source, job.output, reason)
             n = exc.args[2] + 1 if len(exc.args) > 2 else "several"
-            return _failed(job, f"its worker process died {n} times while processing it "
-                                "(out of memory, a crash, or killed)")
-        return _failed(job, f"{type(exc).__name__}: {exc}")
+            return failed_record(job.source, job.output, f"its worker process died {n} times while processing "
+                                                         "it (out of memory, a crash, or killed)")
+        return failed_record(job.source, job.output, f"{type(exc).__name__}: {exc}")
 
 
 def run(inputs: str | Sequence[str], outdir: str, operation: str | Sequence[str] | Operation, *,

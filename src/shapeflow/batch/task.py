@@ -18,6 +18,7 @@ which is process-wide, so two calls in threads of one process would mix their wa
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import shutil
@@ -33,7 +34,7 @@ from .estimate import estimate_peak_bytes, header_vertices
 from .inputs import is_url
 from .operation import Operation, parse_operation, run_steps
 
-__all__ = ["process_file", "run_task", "jsonable", "WORK_PREFIX"]
+__all__ = ["process_file", "run_task", "jsonable", "failed_record", "ended_reason", "WORK_PREFIX"]
 
 #: name prefix of the work folder a file's task makes beside its output (removed when it ends)
 WORK_PREFIX = ".shapeflow-batch-"
@@ -154,15 +155,14 @@ def process_file(source: str, output: str, operation: str | list | Operation, *,
     """
     op = operation if isinstance(operation, Operation) else parse_operation(operation, fmt=format)
     t0 = time.perf_counter()
-    rec = {"input": source, "output": output, "status": "failed", "error": None, "seconds": 0.0,
-           "peak_rss": None, "vertices": None, "faces": None, "report": None, "messages": []}
+    rec = failed_record(source, output)
     parent = os.path.dirname(os.path.abspath(output))
     os.makedirs(parent, exist_ok=True)
     work = tempfile.mkdtemp(prefix=WORK_PREFIX, dir=parent)
     own = sampler is None
     sampler = sampler or RssSampler()
     try:
-        with (sampler if own else _nothing()):
+        with (sampler if own else contextlib.nullcontext()):
             _run_one(op, source, output, work, format, max_memory, threads, rec)
     except BaseException as exc:   # a file's failure is its record; Ctrl-C and exits still end the run
         rec["error"] = _error_text(exc).replace(work + os.sep, "")
@@ -173,14 +173,6 @@ def process_file(source: str, output: str, operation: str | list | Operation, *,
         rec["seconds"] = time.perf_counter() - t0
         rec["peak_rss"] = sampler.peak
     return rec
-
-
-class _nothing:
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        return False
 
 
 def _run_one(op: Operation, source: str, output: str, work: str, fmt, max_memory, threads, rec: dict) -> None:
@@ -218,6 +210,23 @@ def _run_one(op: Operation, source: str, output: str, work: str, fmt, max_memory
     rec["status"] = "done"
 
 
+def failed_record(source: str, output: str, error: str | None = None) -> dict:
+    """A file's record before it has done anything: status "failed" with ``error``."""
+    return {"input": source, "output": output, "status": "failed", "error": error, "seconds": 0.0,
+            "peak_rss": None, "vertices": None, "faces": None, "report": None, "messages": []}
+
+
+def ended_reason(marker: str) -> str | None:
+    """Why a worker ended a file's task (see :func:`run_task`), or None when none did."""
+    if not os.path.exists(marker):
+        return None
+    try:
+        with open(marker) as f:
+            return json.load(f)["reason"]
+    except (OSError, ValueError, KeyError):
+        return "its worker ended while processing it"
+
+
 def _die(marker: str, reason: str) -> None:
     """Record why this worker process ends, then end it at once (its nanny starts a new one)."""
     try:
@@ -237,14 +246,9 @@ def run_task(source: str, output: str, op: Operation, fmt: str | None, marker: s
     bytes, ends its worker process (nothing else can stop a running NumPy call); the reason
     goes to ``marker`` first, so the retry the scheduler then makes fails at once with it.
     """
-    if os.path.exists(marker):
-        try:
-            with open(marker) as f:
-                reason = json.load(f)["reason"]
-        except (OSError, ValueError, KeyError):
-            reason = "its worker ended while processing it"
-        return {"input": source, "output": output, "status": "failed", "error": reason, "seconds": 0.0,
-                "peak_rss": None, "vertices": None, "faces": None, "report": None, "messages": []}
+    reason = ended_reason(marker)
+    if reason is not None:
+        return failed_record(source, output, reason)
     timer = None
     if timeout:
         timer = threading.Timer(timeout, _die, (marker, f"timed out after {timeout:g} s (its worker was restarted)"))
