@@ -240,7 +240,7 @@ class SystemBuilder:
         p0, p1 = pattern.pairs[:, 0], pattern.pairs[:, 1]
         fast = accel.compiled("flow", pattern.n)
         A, diag, mixed, ratio = self._matrix(operator, free, c, fast, lean and fast is not None)
-        n_mixed = sum(mixed) if fast is not None else -1
+        n_mixed = sum(mixed) if mixed is not None else -1   # -1: the NumPy path lists the couplings itself
         # terms of free rows on non-free columns move to the right-hand side
         if n_mixed and fast is not None:
             coupling = fast.interior_coupling(pattern.pairs, free, operator.pw, mixed)
@@ -260,7 +260,7 @@ class SystemBuilder:
 
     @staticmethod
     def _matrix(operator: Operator, free: np.ndarray, c: np.ndarray, fast, lean: bool):
-        """(A, diagonal, counts of pairs with one free end, max D/c); A is None with ``lean``
+        """(A, diagonal, counts of pairs with one free end (None on the NumPy path), max D/c); A is None with ``lean``
         (the caller makes a :class:`PairMatrix` for CG, no CSR arrays)."""
         pattern = operator.pattern
         if lean:
@@ -276,7 +276,7 @@ class SystemBuilder:
         diag = np.where(free, c + operator.deg, 1.0)
         A = pattern.matrix(diag, np.where(both, -operator.pw, 0.0))
         ratio = float(np.max(np.abs(operator.deg[free] / np.where(c[free] != 0, c[free], 1.0))))
-        return A, diag, (-1, 0), ratio
+        return A, diag, None, ratio
 
     def boundary(self, operator: Operator, lam_b: float) -> LinearSystem | None:
         if lam_b == 0.0 or operator.umbrella_pairs.size == 0:

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import OptionalDependencyError, ParameterError, ShapeflowError
+from ..geometry.measures import fan_triangles
 from .session import StudioSession
 
 __all__ = ["make_app", "STATIC", "DEFAULT_LAMS", "MAX_MESSAGE"]
@@ -53,12 +54,6 @@ def _web():
 
 def _frame(tag: bytes, arr: np.ndarray, dtype) -> bytes:
     return tag + np.ascontiguousarray(arr, dtype=dtype).tobytes()
-
-
-def _fan_triangles(mesh) -> np.ndarray:
-    from ..geometry.measures import fan_triangles
-
-    return fan_triangles(mesh)
 
 
 class _Hub:
@@ -153,7 +148,7 @@ def make_app(session: StudioSession, *, lams=DEFAULT_LAMS, solve: bool = True):
     web, WSMsgType = _web()
     hub = _Hub(session, sorted((float(x) for x in lams), reverse=True))
     mesh0 = session.mesh
-    tris = _fan_triangles(mesh0)
+    tris = fan_triangles(mesh0)
     edges = mesh0.topology.edges
 
     async def index(request):
