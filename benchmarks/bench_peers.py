@@ -86,13 +86,24 @@ def peers(V: np.ndarray, F: np.ndarray):
         import open3d as o3d
 
         def o3d_taubin():
-            m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(V), o3d.utility.Vector3iVector(F))
+            m = o3d.geometry.TriangleMesh(o3d.utility.Vector3dVector(np.array(V)),   # open3d needs writable arrays
+                                          o3d.utility.Vector3iVector(np.array(F, np.int32)))
             return m.filter_smooth_taubin(number_of_iterations=10)
 
         out.append(("open3d Taubin (10 iterations)", o3d_taubin))
     except ImportError:
         pass
     return out
+
+
+def rounds(methods, reps: int) -> dict:
+    """Each method's times from ``reps`` interleaved rounds (one run of every method per round), so a
+    change of the machine's load touches every method alike."""
+    samples = {name: [] for name, _ in methods}
+    for _ in range(reps):
+        for name, fn in methods:
+            samples[name].append(median_time(fn, 1))
+    return samples
 
 
 def main(argv=None) -> int:
@@ -117,21 +128,14 @@ def main(argv=None) -> int:
         methods = [("shapeflow, 1 implicit step (fresh mesh)", ours), *peers(V, F)]
         for _, fn in methods:
             fn()                                           # imports, first-call set-up
-        # interleaved rounds: a change of the machine's load touches every method alike
-        samples = {name: [] for name, _ in methods}
-        for _ in range(args.reps):
-            for name, fn in methods:
-                samples[name].append(median_time(fn, 1))
+        samples = rounds(methods, args.reps)
         # warm: the same mesh object again (topology and pattern cached, as in an interactive session),
         # in rounds with the fastest explicit filter; apart, so the live mesh does not touch the rows above
         warm_mesh = sf.Mesh(V, F)
         sf.flow(warm_mesh, 1.0)
         warm_methods = [("shapeflow, 1 implicit step (warm mesh: topology cached)", lambda: sf.flow(warm_mesh, 1.0)),
                         *[(n, f) for n, f in methods if n.startswith("trimesh")]]
-        warm = {name: [] for name, _ in warm_methods}
-        for _ in range(args.reps):
-            for name, fn in warm_methods:
-                warm[name].append(median_time(fn, 1))
+        warm = rounds(warm_methods, args.reps)
     rows = [(name, statistics.median(ts)) for name, ts in samples.items()]
     base = rows[0][1]
     print(f"shapeflow {sf.__version__}; {n_vertices:,} vertices, {n_faces:,} triangles; {os.cpu_count()} "
