@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import os
-import shutil
 import sys
 import time
 
@@ -24,27 +23,20 @@ from common import SHARED  # noqa: F401,E402  (first: it puts src/ on the path)
 
 import shapeflow as sf  # noqa: E402
 
-
-def driver():
-    from selenium import webdriver
-    from selenium.webdriver.chrome.options import Options
-    from selenium.webdriver.chrome.service import Service
-
-    opts = Options()
-    for a in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--use-angle=swiftshader",
-              "--enable-unsafe-swiftshader", "--window-size=1200,800"):
-        opts.add_argument(a)
-    opts.binary_location = shutil.which("chromium")
-    return webdriver.Chrome(service=Service(shutil.which("chromedriver")), options=opts)
-
-
-def wait(d, script, timeout=300.0):
-    t0 = time.monotonic()
-    while time.monotonic() - t0 < timeout:
-        if d.execute_script(script):
-            return
-        time.sleep(0.05)
-    raise SystemExit(f"timed out: {script}")
+#: the λ slider moved to the next member at every animation frame for 3 s: [frames/s, shapes received/s]
+SCRUB = """
+    const done = arguments[0], s = document.getElementById('lam'), lams = window.studio.lams;
+    const f0 = window.studio.frames, t0 = performance.now(); let k = 0, updates = 0, last = null;
+    function step() {
+      if (window.studio.positionsAt !== last) { updates++; last = window.studio.positionsAt; }
+      if (performance.now() - t0 > 3000) {
+        const dt = (performance.now() - t0) / 1000;
+        done([(window.studio.frames - f0) / dt, updates / dt]); return;
+      }
+      s.value = lams[k++ % lams.length]; s.dispatchEvent(new Event('input'));
+      requestAnimationFrame(step);
+    }
+    requestAnimationFrame(step);"""
 
 
 def main() -> int:
@@ -52,52 +44,41 @@ def main() -> int:
     ap.add_argument("--levels", type=int, default=2)
     ap.add_argument("--dabs", type=int, default=40)
     a = ap.parse_args()
-    if not (shutil.which("chromium") and shutil.which("chromedriver")):
+    from shapeflow.studio import StudioServer
+    from shapeflow.studio.headless import chromium, chromium_page, wait
+
+    if not all(chromium()):
         print("needs Debian's chromium and chromium-driver", file=sys.stderr)
         return 2
     from selenium.webdriver.common.action_chains import ActionChains
 
-    from shapeflow.studio import StudioServer
-
     mesh = sf.subdivide(sf.load_example("spot"), a.levels)
-    with StudioServer(mesh) as srv:
-        d = driver()
-        try:
-            t0 = time.monotonic()
-            d.get(srv.url)
-            wait(d, "return window.studio && window.studio.ready")
-            t_open = time.monotonic() - t0
-            wait(d, "return window.studio.family && window.studio.family.state === 'done'")
-            t_family = time.monotonic() - t0
-            size = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
-            d.execute_script(f"document.getElementById('mode').value = 'sculpt';"
-                             f"const r = document.getElementById('radius'); r.value = {0.05 * size};")
-            canvas = d.find_element("css selector", "#view canvas")
-            chain = ActionChains(d).move_to_element_with_offset(canvas, -120, 20).click_and_hold()
-            for k in range(a.dabs):
-                chain = chain.move_to_element_with_offset(canvas, -120 + 6 * k, 20 - (k % 5)).pause(0.08)
-            chain.release().perform()
-            wait(d, "return window.studio.pending === 0 && window.studio.awaitingFrame === null")
-            lat = d.execute_script("return window.studio.latencies")
-            d.execute_script("document.getElementById('mode').value = 'view';")
-            idle = d.execute_async_script("""
-                const done = arguments[0], f0 = window.studio.frames, t0 = performance.now();
-                setTimeout(() => done((window.studio.frames - f0) / ((performance.now() - t0) / 1000)), 2000);""")
-            scrub = d.execute_async_script("""
-                const done = arguments[0], s = document.getElementById('lam'), lams = window.studio.lams;
-                const f0 = window.studio.frames, t0 = performance.now(); let k = 0, updates = 0, last = null;
-                function step() {
-                  if (window.studio.positionsAt !== last) { updates++; last = window.studio.positionsAt; }
-                  if (performance.now() - t0 > 3000) {
-                    const dt = (performance.now() - t0) / 1000;
-                    done([(window.studio.frames - f0) / dt, updates / dt]); return;
-                  }
-                  s.value = lams[k++ % lams.length]; s.dispatchEvent(new Event('input'));
-                  requestAnimationFrame(step);
-                }
-                requestAnimationFrame(step);""")
-        finally:
-            d.quit()
+    with StudioServer(mesh) as srv, chromium_page("about:blank", size=(1200, 800), ready=None) as d:
+        t0 = time.monotonic()
+        d.get(srv.url)
+        wait(d, "return window.studio && window.studio.ready", 300)
+        t_open = time.monotonic() - t0
+        wait(d, "return window.studio.family && window.studio.family.state === 'done'", 300)
+        t_family = time.monotonic() - t0
+        size = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
+        d.execute_script(f"document.getElementById('mode').value = 'sculpt';"
+                         f"const r = document.getElementById('radius'); r.value = {0.05 * size};")
+        canvas = d.find_element("css selector", "#view canvas")
+        chain = ActionChains(d).move_to_element_with_offset(canvas, -120, 20).click_and_hold()
+        for k in range(a.dabs):
+            chain = chain.move_to_element_with_offset(canvas, -120 + 6 * k, 20 - (k % 5)).pause(0.08)
+        chain.release().perform()
+        wait(d, "return window.studio.pending === 0 && window.studio.awaitingFrame === null")
+        lat = d.execute_script("return window.studio.latencies")
+        d.execute_script("document.getElementById('mode').value = 'view';")
+        idle = d.execute_async_script("""
+            const done = arguments[0], f0 = window.studio.frames, t0 = performance.now();
+            setTimeout(() => done((window.studio.frames - f0) / ((performance.now() - t0) / 1000)), 2000);""")
+        scrub = [d.execute_async_script(SCRUB)]
+        d.execute_script("const c = document.getElementById('colours'); c.value = 'curvature';"
+                         "c.dispatchEvent(new Event('change'));")
+        wait(d, "return window.studio.field && window.studio.pending === 0")
+        scrub.append(d.execute_async_script(SCRUB))      # the colours follow: a field per shape
     print(f"shapeflow studio, {mesh.n_vertices:,} vertices ({time.strftime('%Y-%m-%d')}, {os.cpu_count()} cores, "
           f"headless Chromium with SwiftShader)")
     print(f"page ready {t_open:.1f} s after opening; family of {len(srv.session.family_status().lams)} shapes "
@@ -107,7 +88,8 @@ def main() -> int:
         print(f"dab latency, pointer event to drawn frame: median {q[0]:.0f} ms, 95th percentile {q[1]:.0f} ms "
               f"({len(lat)} dabs; target 50 ms)")
     print(f"drawing with nothing changing: {idle:.1f} frames/s")
-    print(f"scrubbing the family: {scrub[0]:.1f} frames/s drawn, {scrub[1]:.1f} shapes/s received (target 30)")
+    for what, (fps, shapes) in zip(("", ", curvature colours following"), scrub):
+        print(f"scrubbing the family{what}: {fps:.1f} frames/s drawn, {shapes:.1f} shapes/s received (target 30)")
     return 0
 
 

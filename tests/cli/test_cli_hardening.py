@@ -22,6 +22,7 @@ def run_cli(args, capsys):
     (["flow", "example:spot", "{out}", "--lambda", "1", "--lambda-border=-1e20"], "lam_border"),
     (["family", "example:spot", "{tmp}/fam", "--from", "0", "--to=-2e13", "--step=-1e13"], "<= 1e+12"),
     (["flow", "example:spot", "{out}", "--lambda", "1", "--iterations", "1000000000"], "iterations"),
+    (["studio", "example:spot", "--max-upload", "0", "--no-browser"], "--max-upload"),
 ])
 def test_huge_parameters_are_one_line(tmp_path, capsys, args, match):
     out = tmp_path / "out.ply"

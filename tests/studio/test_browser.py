@@ -4,10 +4,7 @@ change where a stroke went and nowhere far from it."""
 
 from __future__ import annotations
 
-import io
 import json
-import shutil
-import time
 import urllib.error
 import urllib.request
 
@@ -17,9 +14,9 @@ import pytest
 import shapeflow as sf
 
 pytest.importorskip("aiohttp", reason="aiohttp (the 'studio' extra) is not installed")
-webdriver = pytest.importorskip("selenium.webdriver", reason="selenium (a test dependency) is not installed")
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-DRIVER = shutil.which("chromedriver")
+pytest.importorskip("selenium.webdriver", reason="selenium (a test dependency) is not installed")
+from browser import CHROMIUM, DRIVER, canvas_box, chromium_page, pixels, settled, shown, wait  # noqa: E402
+
 pytestmark = pytest.mark.skipif(not (CHROMIUM and DRIVER), reason="chromium and chromedriver are not installed")
 
 
@@ -33,62 +30,8 @@ def server():
 
 @pytest.fixture(scope="module")
 def page(server):
-    from selenium.webdriver.chrome.options import Options
-    from selenium.webdriver.chrome.service import Service
-
-    opts = Options()
-    for a in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--use-angle=swiftshader",
-              "--enable-unsafe-swiftshader", "--window-size=1100,760"):
-        opts.add_argument(a)
-    opts.binary_location = CHROMIUM
-    d = webdriver.Chrome(service=Service(DRIVER), options=opts)
-    d.get(server.url)
-    wait(d, "return window.studio && window.studio.ready && window.studio.family.state === 'done'")
-    yield d
-    d.quit()
-
-
-def wait(d, script, timeout=60.0):
-    t0 = time.monotonic()
-    while time.monotonic() - t0 < timeout:
-        if d.execute_script(script):
-            return
-        time.sleep(0.05)
-    st = d.execute_script("const s = window.studio || {}; return [s.pending, s.version, s.error, s.family];")
-    raise AssertionError(f"timed out waiting for: {script} (page: pending, version, error, family = {st})")
-
-
-def settled(d, server, timeout=60.0):
-    """The page has its answers and has drawn since: no edit in flight, and the session's version
-    (read afresh: a stroke's last edits may still be arriving) shown for a quarter of a second."""
-    t0, since = time.monotonic(), None
-    while time.monotonic() - t0 < timeout:
-        ok = d.execute_script(f"return window.studio.pending === 0 && "
-                              f"window.studio.version === {server.session.version}")
-        since = (since or time.monotonic()) if ok else None
-        if since is not None and time.monotonic() - since > 0.25:
-            break
-        time.sleep(0.05)
-    else:
-        raise AssertionError("the page did not settle")
-    frames = d.execute_script("return window.studio.frames")
-    wait(d, f"return window.studio.frames > {frames + 1}")
-
-
-def shown(d) -> np.ndarray:
-    return np.array(d.execute_script("return window.studio.positions()"), np.float32).reshape(-1, 3)
-
-
-def pixels(d) -> np.ndarray:
-    from PIL import Image
-
-    return np.asarray(Image.open(io.BytesIO(d.get_screenshot_as_png())).convert("RGB"), np.int16)
-
-
-def canvas_box(d):
-    r = d.execute_script("const r = document.querySelector('#view canvas').getBoundingClientRect();"
-                         "return [r.left, r.top, r.width, r.height];")
-    return [int(round(v)) for v in r]
+    with chromium_page(server.url) as d:
+        yield d
 
 
 def test_the_slider_shows_the_family(page, server):

@@ -150,3 +150,35 @@ def test_painting_between_dabs_reuses_the_brush_with_the_new_weights(mesh):
     assert np.array_equal(ref.weights, fresh.weights)
     with pytest.raises(sf.ParameterError, match="weights"):
         ref.set_weights(np.full(mesh.n_vertices, 2.0))
+
+
+def test_weights_from_a_file_are_one_undo_step(mesh):
+    s = StudioSession(mesh)
+    s.paint(mesh.vertices[0], 0.5, value=0.0)
+    w = np.linspace(0.0, 1.0, mesh.n_vertices)
+    s.set_weights(w)
+    np.testing.assert_array_equal(s.weights, w)
+    assert s.undo() and s.weights[0] == 0.0 and not np.array_equal(s.weights, w)    # back to the painted ones
+    assert s.redo() and np.array_equal(s.weights, w)
+    with pytest.raises(sf.ParameterError, match="shape"):
+        s.set_weights(w[:-1])
+    with pytest.raises(sf.ParameterError, match=r"\[0, 1\]"):
+        s.set_weights(w * 2.0)
+    with pytest.raises(sf.ParameterError, match="None"):
+        s.set_weights(None)
+    np.testing.assert_array_equal(s.weights, w)                   # refused weights change nothing
+
+
+def test_fields_of_the_previewed_shape(mesh):
+    s = StudioSession(mesh)
+    s.solve_family([0.0, -10.0, -20.0], wait=True)
+    shape = s.shape_at(-15.0)                                     # a blend between two members
+    H = sf.mean_curvature(mesh.with_vertices(shape), area="barycentric")
+    np.testing.assert_array_equal(s.field("curvature", lam=-15.0), H)
+    from shapeflow.geometry.normals import vertex_normals
+
+    n = vertex_normals(mesh)
+    np.testing.assert_allclose(s.field("displacement", lam=-15.0), ((shape - mesh.vertices) * n).sum(axis=1),
+                               rtol=0, atol=1e-14)
+    assert np.abs(s.field("displacement")).max() == 0.0          # the current shape is still the input
+    np.testing.assert_array_equal(s.input_vertices, mesh.vertices)

@@ -16,6 +16,8 @@ def register(sub) -> None:
     p.add_argument("--port", type=int, default=8765, help="port (default 8765; 0 picks a free one)")
     p.add_argument("--host", default="127.0.0.1",
                    help="address to listen on (default 127.0.0.1: this machine only; 0.0.0.0 serves the network)")
+    p.add_argument("--max-upload", type=float, default=512, metavar="MIB",
+                   help="largest file a page may open, in MiB (default 512)")
     p.add_argument("--no-browser", action="store_true", help="print the address, do not open a browser")
     p.set_defaults(func=run)
 
@@ -23,10 +25,13 @@ def register(sub) -> None:
 def run(args) -> int:
     import threading
 
+    from .. import params
     from ..studio import StudioServer
 
     mesh = load_mesh_arg(args.mesh)
-    server = StudioServer(mesh, host=args.host, port=args.port)
+    mib = params.number("--max-upload", args.max_upload, lo=0.001)
+    server = StudioServer(mesh, host=args.host, port=args.port, max_upload=int(mib * 2**20),
+                          name=args.mesh.split("/")[-1].split(":")[-1])
     eprint(f"shapeflow studio: {mesh.n_vertices:,} vertices at {server.url} (Ctrl-C ends it)")
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         eprint(f"shapeflow studio: warning: listening on {args.host}: anyone who can reach this machine can edit")

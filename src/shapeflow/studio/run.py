@@ -7,7 +7,7 @@ import threading
 
 from .. import params
 from ..errors import ParameterError
-from .server import DEFAULT_LAMS, make_app
+from .server import DEFAULT_LAMS, MAX_UPLOAD, hub_of, make_app
 from .session import StudioSession
 
 __all__ = ["StudioServer", "studio"]
@@ -17,18 +17,19 @@ class StudioServer:
     """The studio's web server on a background thread (its own asyncio loop).
 
     ``url`` is where a browser opens it; :meth:`stop` ends it.  Binds to 127.0.0.1 unless
-    ``host`` says otherwise; ``port=0`` picks a free port.
+    ``host`` says otherwise; ``port=0`` picks a free port.  ``max_upload``: the largest file
+    (bytes) a page may open; ``name``: what the page calls the mesh.
     """
 
     def __init__(self, mesh_or_session, *, host: str = "127.0.0.1", port: int = 0, lams=DEFAULT_LAMS,
-                 solve: bool = True):
+                 solve: bool = True, max_upload: int = MAX_UPLOAD, name: str = ""):
         from aiohttp import web
 
-        self.session = mesh_or_session if isinstance(mesh_or_session, StudioSession) else \
+        session = mesh_or_session if isinstance(mesh_or_session, StudioSession) else \
             StudioSession(mesh_or_session)
         port = params.integer("port", port, lo=0, hi=65535)
         self._loop = asyncio.new_event_loop()
-        self._app = make_app(self.session, lams=lams, solve=solve)
+        self._app = make_app(session, lams=lams, solve=solve, max_upload=max_upload, name=name)
         self._runner = web.AppRunner(self._app, access_log=None)
         started = threading.Event()
         failure: list = []
@@ -55,6 +56,11 @@ class StudioServer:
         self.host = host
         self.url = f"http://{'127.0.0.1' if host in ('0.0.0.0', '') else host}:{self.port}/"
 
+    @property
+    def session(self) -> StudioSession:
+        """The :class:`StudioSession` the pages edit (a new one after a page opened a file)."""
+        return hub_of(self._app).session
+
     def stop(self) -> None:
         """End the server (open pages lose their connection)."""
         if not self._loop.is_running():
@@ -77,11 +83,12 @@ class StudioServer:
         return f'<iframe src="{self.url}" width="100%" height="600" style="border:0"></iframe>'
 
 
-def studio(mesh, *, port: int = 0, host: str = "127.0.0.1", lams=DEFAULT_LAMS) -> StudioServer:
+def studio(mesh, *, port: int = 0, host: str = "127.0.0.1", lams=DEFAULT_LAMS,
+           max_upload: int = MAX_UPLOAD) -> StudioServer:
     """Start the studio on ``mesh`` and return its server; in Jupyter the returned object shows
     the page inline.  ``server.session`` is the :class:`StudioSession` the page edits.
 
     >>> s = sf.studio(sf.load_example("spot"))     # doctest: +SKIP
     >>> s                                           # doctest: +SKIP
     """
-    return StudioServer(mesh, host=host, port=port, lams=lams)
+    return StudioServer(mesh, host=host, port=port, lams=lams, max_upload=max_upload)

@@ -156,6 +156,17 @@ class StudioSession:
         return bool(self._redo)
 
     # --- weights -------------------------------------------------------
+    def set_weights(self, weights) -> None:
+        """Replace every weight (one undo step), e.g. by weights read from a file: one number per
+        vertex in [0, 1]."""
+        from ..flow.options import resolve_weights
+
+        if weights is None:
+            raise ParameterError("weights must be one number per vertex in [0, 1], got None")
+        with self._lock:
+            w = resolve_weights(self._base, weights)
+            self._record("weights", np.arange(self._V.shape[0]), None, w)
+
     def paint(self, center, radius: float, *, value: float = 1.0, strength: float = 1.0) -> np.ndarray:
         """Move the weights inside the sphere towards ``value`` by ``strength × (1 − (d/r)²)²``;
         returns the vertices touched (one undo step)."""
@@ -274,23 +285,29 @@ class StudioSession:
     # --- colour fields ---------------------------------------------------
     FIELDS = ("weights", "curvature", "displacement")
 
-    def field(self, name: str) -> np.ndarray:
+    def field(self, name: str, *, lam: float | None = None) -> np.ndarray:
         """Per-vertex values to colour the surface by: the weights, the signed mean curvature
         (barycentric areas: it converges to H), or the displacement from the input along the
-        input's vertex normals (> 0 outwards)."""
+        input's vertex normals (> 0 outwards).  With ``lam``, of the family's shape at ``lam``
+        (:meth:`shape_at`: what the slider previews) instead of the current shape."""
         if name not in self.FIELDS:
             raise ParameterError(f"unknown field {name!r}; choose one of {', '.join(self.FIELDS)}")
         with self._lock:
             if name == "weights":
                 return self._w.copy()
-            mesh = self._base.with_vertices(self._V.copy())
+            V = self._V.copy() if lam is None else self.shape_at(lam)
             if name == "curvature":
                 from ..operators.curvature import mean_curvature
 
-                return mean_curvature(mesh, area="barycentric")
+                return mean_curvature(self._base.with_vertices(V), area="barycentric")
             from ..geometry.normals import vertex_normals
 
-            return np.einsum("ij,ij->i", self._V - self._base.vertices, vertex_normals(self._base))
+            return np.einsum("ij,ij->i", V - self._base.vertices, vertex_normals(self._base))
+
+    @property
+    def input_vertices(self) -> np.ndarray:
+        """The positions the session started from (what the split view shows as "before")."""
+        return np.array(self._base.vertices, dtype=np.float64)
 
     # --- files -----------------------------------------------------------
     @classmethod

@@ -28,13 +28,23 @@ studio.softwareGL = softwareGL;
 // what the page shows, for tests and scripts: the positions and weights it holds
 studio.positions = () => (geometry ? Array.from(geometry.getAttribute("position").array) : []);
 studio.weightList = () => (studio.weights ? Array.from(studio.weights) : []);
+studio.edgeCount = () => (edges ? edges.length / 2 : 0);
+studio.cameraPosition = () => camera.position.toArray();
 
-let n = 0, tris = null, edges = null, geometry = null, surface = null, wire = null;
+let n = 0, tris = null, edges = null, base = null, geometry = null, surface = null, wire = null, before = null;
 const weightColour = (w, out, k) => {      // 0: blue, 1: warm white
   out[k] = 0.25 + 0.72 * w; out[k + 1] = 0.35 + 0.55 * w; out[k + 2] = 0.9 - 0.2 * w;
 };
 
+function dispose() {                      // a new mesh was opened: drop what showed the old one
+  for (const o of [surface, wire, before]) {
+    if (o) { scene.remove(o); o.geometry.dispose(); o.material.dispose(); }
+  }
+  surface = wire = before = geometry = null;
+}
+
 function build(positions) {
+  dispose();
   geometry = new THREE.BufferGeometry();
   geometry.setAttribute("position", new THREE.BufferAttribute(positions, 3));
   geometry.setAttribute("color", new THREE.BufferAttribute(new Float32Array(n * 3).fill(1), 3));
@@ -51,6 +61,14 @@ function build(positions) {
                                                                  opacity: 0.35 }));
   wire.visible = $("wire").checked;
   scene.add(wire);
+  // the split view's "before": the input as opened, drawn left of the divider
+  const bg = new THREE.BufferGeometry();
+  bg.setAttribute("position", new THREE.BufferAttribute(base || new Float32Array(positions), 3));
+  bg.setIndex(geometry.getIndex());
+  bg.computeVertexNormals();
+  before = new THREE.Mesh(bg, new THREE.MeshStandardMaterial({ color: 0xb8b4aa, roughness: 0.6 }));
+  before.visible = false;
+  scene.add(before);
   geometry.computeBoundingSphere();
   const s = geometry.boundingSphere;
   controls.target.copy(s.center);
@@ -114,9 +132,10 @@ function paintColours() {
   }
   c.needsUpdate = true;
 }
-function requestField() {
-  const mode = $("colours").value;
-  if (mode === "curvature" || mode === "displacement") send({ op: "field", name: mode });
+const fieldMode = () => { const m = $("colours").value; return m === "curvature" || m === "displacement" ? m : null; };
+function requestField() {                  // of the shape shown: the slider's preview when it is off 0
+  const mode = fieldMode();
+  if (mode) send({ op: "field", name: mode, lam: studio.lam !== 0 ? studio.lam : null });
   else paintColours();
 }
 
@@ -128,15 +147,17 @@ studio.send = send;
 ws.onmessage = (ev) => {
   if (typeof ev.data === "string") {
     const m = JSON.parse(ev.data);
-    if (m.type === "mesh") { n = m.n_vertices; }
+    if (m.type === "mesh") { n = m.n_vertices; dispose(); studio.ready = false; studio.field = null;
+                             studio.name = m.name; formats(m.formats || []);
+                             studio.lam = 0; $("lam").value = 0; $("lam-value").textContent = 0; }
     else if (m.type === "state") {
       const changed = m.version !== studio.version;
       state(m); studio.pending = Math.max(0, studio.pending - 1);
       if (changed && $("colours").value !== "weights" && $("colours").value !== "none") requestField();
     }
     else if (m.type === "field") {
-      studio.field = { name: m.name, version: m.version, values: studio.fieldValues };
-      studio.pending = Math.max(0, studio.pending - 1); paintColours();
+      studio.field = { name: m.name, version: m.version, lam: m.lam, values: studio.fieldValues };
+      paintColours();
     }
     else if (m.type === "error") {
       studio.error = m.message; $("error").textContent = m.message; studio.pending = Math.max(0, studio.pending - 1);
@@ -146,6 +167,7 @@ ws.onmessage = (ev) => {
   const tag = new TextDecoder().decode(new Uint8Array(ev.data, 0, 4));
   if (tag === "TRI0") tris = new Uint32Array(ev.data.slice(4));
   else if (tag === "EDG0") edges = new Uint32Array(ev.data.slice(4));
+  else if (tag === "BAS0") base = new Float32Array(ev.data.slice(4));
   else if (tag === "POS0") setPositions(ev.data);
   else if (tag === "PSUB") setSomePositions(ev.data);
   else if (tag === "WGT0") setWeights(ev.data);
@@ -154,14 +176,17 @@ ws.onmessage = (ev) => {
 ws.onclose = () => { $("status").textContent = "disconnected: restart shapeflow studio and reload"; };
 
 function state(m) {
-  studio.version = m.version; studio.family = m.family; studio.lams = m.lams;
+  studio.version = m.version; studio.family = m.family; studio.lams = m.lams; studio.options = m.options;
   if (m.lams && m.lams.length) {
     $("lam").min = Math.min(...m.lams); $("lam").max = Math.max(...m.lams);
   }
   const f = m.family;
   const fam = f.state === "running" ? `solving the family: ${f.done}/${f.total}` :
-              f.state === "done" ? `family of ${f.total} shapes ready` : f.state === "failed" ? "family failed" : "";
-  $("status").textContent = `${n.toLocaleString()} vertices\n${fam}`;
+              f.state === "done" ? `family of ${f.total} shapes ready` :
+              f.state === "failed" ? `family failed: ${f.error}` : "";
+  $("progress").value = f.total ? f.done / f.total : 0;
+  $("progress").style.visibility = f.state === "running" ? "visible" : "hidden";
+  $("status").textContent = `${studio.name ? studio.name + ": " : ""}${n.toLocaleString()} vertices\n${fam}`;
   $("undo").disabled = !m.can_undo; $("redo").disabled = !m.can_redo;
   studio.ready = geometry !== null;
 }
@@ -170,17 +195,79 @@ function state(m) {
 $("lam").addEventListener("input", () => {
   studio.lam = Number($("lam").value);
   $("lam-value").textContent = studio.lam;
-  send({ op: "lam", value: studio.lam });
+  send({ op: "lam", value: studio.lam, field: fieldMode() });   // the colours follow the preview
 });
 $("apply").onclick = () => send({ op: "apply", value: Number($("lam").value) });
 $("undo").onclick = () => send({ op: "undo" });
 $("redo").onclick = () => send({ op: "redo" });
 $("wire").onchange = () => { if (wire) wire.visible = $("wire").checked; };
+$("turntable").onchange = () => { controls.autoRotate = $("turntable").checked; };
+controls.autoRotateSpeed = 4.0;                 // one turn in 15 s
+// the family's options: any change solves the family again
+const familyOptions = () => ({ op: "options", lam_border: Number($("lam-border").value),
+  iterations: Number($("iterations").value), normalized: !$("area").checked,
+  preserve_volume: $("volume").checked, compat: $("compat").value });
+for (const id of ["lam-border", "iterations", "area", "volume", "compat"]) $(id).onchange = () => send(familyOptions());
+
+// --- opening files: the dialog, drag and drop, weights ---------------------
+async function upload(route, file) {
+  $("error").textContent = ""; studio.error = null;
+  $("status").textContent = `opening ${file.name}…`;
+  studio.uploading = (studio.uploading || 0) + 1;
+  try {
+    const r = await fetch(`/${route}?name=${encodeURIComponent(file.name)}`, { method: "POST", body: file });
+    if (!r.ok) { studio.error = await r.text(); $("error").textContent = studio.error; }
+  } catch (err) {
+    studio.error = `${file.name}: the upload failed (${err.message})`; $("error").textContent = studio.error;
+  } finally { studio.uploading--; }
+}
+studio.upload = upload;
+$("open").onclick = () => $("open-file").click();
+$("open-file").onchange = () => { const f = $("open-file").files[0]; if (f) upload("open", f); $("open-file").value = ""; };
+$("load-weights").onclick = () => $("weights-file").click();
+$("weights-file").onchange = () => { const f = $("weights-file").files[0]; if (f) upload("weights", f); $("weights-file").value = ""; };
+window.addEventListener("dragover", (e) => { e.preventDefault(); document.body.classList.add("dropping"); });
+window.addEventListener("dragleave", () => document.body.classList.remove("dropping"));
+window.addEventListener("drop", (e) => {
+  e.preventDefault(); document.body.classList.remove("dropping");
+  const f = e.dataTransfer.files[0];
+  if (f) upload(/\.(npy|txt)$/i.test(f.name) ? "weights" : "open", f);
+});
+
+// --- the split view: the input left of the divider, the current shape right of it ---
+studio.split = 0.5;
+const divider = $("divider");
+$("split").onchange = () => { divider.style.display = $("split").checked ? "block" : "none"; placeDivider(); };
+function placeDivider() { divider.style.left = `${100 * studio.split}%`; }
+divider.addEventListener("pointerdown", (e) => {
+  divider.setPointerCapture(e.pointerId);
+  const move = (ev) => {
+    const r = view.getBoundingClientRect();
+    studio.split = Math.min(0.95, Math.max(0.05, (ev.clientX - r.left) / r.width)); placeDivider();
+  };
+  divider.addEventListener("pointermove", move);
+  divider.addEventListener("pointerup", () => divider.removeEventListener("pointermove", move), { once: true });
+});
 $("colours").onchange = requestField;
 const showRadius = () => { $("radius-value").textContent = Number($("radius").value).toPrecision(3); };
 $("radius").addEventListener("input", showRadius);
 $("brush-lam").addEventListener("input", () => { $("brush-lam-value").textContent = $("brush-lam").value; });
-$("download").onclick = () => { location.href = `/download/shapeflow-studio.${$("format").value}`; };
+function formats(exts) {              // what the server reads and writes: the download list, the dialog's filter
+  const sel = $("format"), keep = sel.value;
+  if (sel.options.length !== exts.length) {
+    sel.replaceChildren(...exts.map((e) => new Option(e, e)));
+    if (exts.includes(keep)) sel.value = keep;
+  }
+  $("open-file").accept = exts.map((e) => "." + e).join(",");
+}
+$("download").onclick = async () => {
+  const name = `${(studio.name || "shapeflow-studio").replace(/\.[^.]*$/, "")}-studio.${$("format").value}`;
+  const r = await fetch(`/download/${encodeURIComponent(name)}`);
+  if (!r.ok) { studio.error = await r.text(); $("error").textContent = studio.error; return; }
+  const a = document.createElement("a");
+  a.href = URL.createObjectURL(await r.blob()); a.download = name; a.click();
+  setTimeout(() => URL.revokeObjectURL(a.href), 10000);
+};
 window.addEventListener("keydown", (e) => {            // [ and ] change the radius, as in Blender
   const r = $("radius");
   if (e.key === "[") r.value = Number(r.value) / 1.15;
@@ -254,8 +341,18 @@ function resize() {
 }
 window.addEventListener("resize", resize);
 resize();
+function draw() {
+  if (!$("split").checked || !before) { renderer.render(scene, camera); return; }
+  const w = view.clientWidth, h = view.clientHeight, x = Math.round(studio.split * w);
+  renderer.setScissorTest(true);
+  surface.visible = false; wire.visible = false; before.visible = true;      // before: the input
+  renderer.setScissor(0, 0, x, h); renderer.setViewport(0, 0, w, h); renderer.render(scene, camera);
+  surface.visible = true; wire.visible = $("wire").checked; before.visible = false;
+  renderer.setScissor(x, 0, w - x, h); renderer.render(scene, camera);
+  renderer.setScissorTest(false);
+}
 renderer.setAnimationLoop(() => {
-  controls.update(); renderer.render(scene, camera); studio.frames++;
+  controls.update(); draw(); studio.frames++;
   if (studio.awaitingFrame !== null) {
     renderer.getContext().finish();                 // the frame is drawn, not just queued
     studio.latencies.push(performance.now() - studio.awaitingFrame); studio.awaitingFrame = null;
