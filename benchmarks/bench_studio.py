@@ -6,7 +6,8 @@ Spot subdivided ``--levels`` times (2: 46,850 vertices) in ``shapeflow studio``,
 Chromium (Debian's chromium and chromium-driver; WebGL on SwiftShader, the CPU renderer, so the
 frame times are an upper bound of a machine with a GPU).  Dab latency: from the pointer event of a
 drag over the model (the enhancement brush, radius 5% of the model's size) to the end of the first
-frame drawn with the server's answer (``gl.finish()``), per dab.  Scrubbing: the λ slider moved to
+frame drawn with the server's answer (``gl.finish()``), per dab; drags alternate between the
+page's default (frames drawn on demand) and ``?continuous=1`` (every frame drawn).  Scrubbing: the λ slider moved to
 the next member at every animation frame for 3 s; frames drawn and position updates received per
 second.
 """
@@ -39,10 +40,29 @@ SCRUB = """
     requestAnimationFrame(step);"""
 
 
+def dabs(d, n: int, size: float) -> list:
+    """A drag of ``n`` dabs of the enhancement brush over the model; the latencies the page measured."""
+    from selenium.webdriver.common.action_chains import ActionChains
+
+    from shapeflow.studio.headless import wait
+
+    d.execute_script(f"window.studio.latencies = []; document.getElementById('mode').value = 'sculpt';"
+                     f"const r = document.getElementById('radius'); r.value = {0.05 * size};")
+    canvas = d.find_element("css selector", "#view canvas")
+    chain = ActionChains(d).move_to_element_with_offset(canvas, -120, 20).click_and_hold()
+    for k in range(n):
+        chain = chain.move_to_element_with_offset(canvas, -120 + 6 * k, 20 - (k % 5)).pause(0.08)
+    chain.release().perform()
+    wait(d, "return window.studio.pending === 0 && window.studio.awaitingFrame === null")
+    d.execute_script("document.getElementById('mode').value = 'view';")
+    return list(d.execute_script("return window.studio.latencies"))
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--levels", type=int, default=2)
     ap.add_argument("--dabs", type=int, default=40)
+    ap.add_argument("--rounds", type=int, default=2, help="drags in each drawing mode, interleaved")
     a = ap.parse_args()
     from shapeflow.studio import StudioServer
     from shapeflow.studio.headless import chromium, chromium_page, wait
@@ -50,9 +70,10 @@ def main() -> int:
     if not all(chromium()):
         print("needs Debian's chromium and chromium-driver", file=sys.stderr)
         return 2
-    from selenium.webdriver.common.action_chains import ActionChains
 
     mesh = sf.subdivide(sf.load_example("spot"), a.levels)
+    size = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
+    lat = {"": [], "?continuous=1": []}
     with StudioServer(mesh) as srv, chromium_page("about:blank", size=(1200, 800), ready=None) as d:
         t0 = time.monotonic()
         d.get(srv.url)
@@ -60,17 +81,14 @@ def main() -> int:
         t_open = time.monotonic() - t0
         wait(d, "return window.studio.family && window.studio.family.state === 'done'", 300)
         t_family = time.monotonic() - t0
-        size = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
-        d.execute_script(f"document.getElementById('mode').value = 'sculpt';"
-                         f"const r = document.getElementById('radius'); r.value = {0.05 * size};")
-        canvas = d.find_element("css selector", "#view canvas")
-        chain = ActionChains(d).move_to_element_with_offset(canvas, -120, 20).click_and_hold()
-        for k in range(a.dabs):
-            chain = chain.move_to_element_with_offset(canvas, -120 + 6 * k, 20 - (k % 5)).pause(0.08)
-        chain.release().perform()
-        wait(d, "return window.studio.pending === 0 && window.studio.awaitingFrame === null")
-        lat = d.execute_script("return window.studio.latencies")
-        d.execute_script("document.getElementById('mode').value = 'view';")
+        for r in range(a.rounds):                     # on demand and continuous drawing, interleaved
+            for mode in lat:
+                if r or mode:
+                    d.get(srv.url + mode)
+                    wait(d, "return window.studio && window.studio.ready && window.studio.family.state === 'done'",
+                         300)
+                lat[mode] += dabs(d, a.dabs, size)
+        # the page is now drawing continuously: its frame rate is the cost of one frame
         idle = d.execute_async_script("""
             const done = arguments[0], f0 = window.studio.frames, t0 = performance.now();
             setTimeout(() => done((window.studio.frames - f0) / ((performance.now() - t0) / 1000)), 2000);""")
@@ -83,11 +101,14 @@ def main() -> int:
           f"headless Chromium with SwiftShader)")
     print(f"page ready {t_open:.1f} s after opening; family of {len(srv.session.family_status().lams)} shapes "
           f"ready at {t_family:.1f} s")
-    if lat:
-        q = np.percentile(lat, [50, 95])
-        print(f"dab latency, pointer event to drawn frame: median {q[0]:.0f} ms, 95th percentile {q[1]:.0f} ms "
-              f"({len(lat)} dabs; target 50 ms)")
-    print(f"drawing with nothing changing: {idle:.1f} frames/s")
+    for mode, what in (("", "drawn on demand (default)"), ("?continuous=1", "drawing every frame")):
+        if lat[mode]:
+            q = np.percentile(lat[mode], [50, 95])
+            print(f"dab latency, pointer event to drawn frame, {what}: median {q[0]:.0f} ms, 95th percentile "
+                  f"{q[1]:.0f} ms ({len(lat[mode])} dabs; target 50 ms)")
+    if lat[""] and lat["?continuous=1"]:
+        print(f"  on demand / continuous: {np.median(lat['']) / np.median(lat['?continuous=1']):.2f}")
+    print(f"drawing every frame: {idle:.1f} frames/s ({1000 / max(idle, 1e-9):.0f} ms a frame)")
     for what, (fps, shapes) in zip(("", ", curvature colours following"), scrub):
         print(f"scrubbing the family{what}: {fps:.1f} frames/s drawn, {shapes:.1f} shapes/s received (target 30)")
     return 0

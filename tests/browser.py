@@ -26,8 +26,8 @@ def settled(d, server, timeout=60.0):
         time.sleep(0.05)
     else:
         raise AssertionError("the page did not settle")
-    frames = d.execute_script("return window.studio.frames")
-    wait(d, f"return window.studio.frames > {frames + 1}")
+    frames = d.execute_script("window.studio.redraw(); return window.studio.frames")
+    wait(d, f"return window.studio.frames > {frames}")
 
 
 def shown(d) -> np.ndarray:

@@ -35,8 +35,9 @@ class Film:
     def shot(self, ms: int = 110) -> None:
         from PIL import Image
 
-        n = self.page.execute_script("return window.studio.frames")
-        wait(self.page, f"return window.studio.pending === 0 && window.studio.frames > {n + 1}")
+        wait(self.page, "return window.studio.pending === 0")
+        n = self.page.execute_script("window.studio.redraw(); return window.studio.frames")
+        wait(self.page, f"return window.studio.frames > {n}")
         im = Image.open(io.BytesIO(self.view.screenshot_as_png)).convert("RGB")
         self.frames.append(im.resize((self.width, round(im.height * self.width / im.width)), Image.LANCZOS))
         self.durations.append(ms)

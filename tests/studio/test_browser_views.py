@@ -8,6 +8,7 @@ from __future__ import annotations
 import glob
 import os
 import tempfile
+import time
 import urllib.error
 import urllib.request
 
@@ -104,8 +105,8 @@ def test_split_view_shows_the_input_left_of_the_divider_and_the_turntable_turns(
     background = np.array([0x26, 0x27, 0x2b])
 
     def silhouette():
-        frames = page.execute_script("return window.studio.frames")
-        wait(page, f"return window.studio.frames > {frames + 2}")
+        frames = page.execute_script("window.studio.redraw(); return window.studio.frames")
+        wait(page, f"return window.studio.frames > {frames}")
         return np.abs(pixels(page) - background).sum(axis=2) > 12
 
     before = silhouette()
@@ -134,6 +135,10 @@ def test_split_view_shows_the_input_left_of_the_divider_and_the_turntable_turns(
     p1 = np.array(page.execute_script("return window.studio.cameraPosition()"))
     change(page, "turntable", checked=False)
     assert np.linalg.norm(p1 - p0) > 1e-3 * np.linalg.norm(p0)
+    settled(page, server)                                            # then nothing changes: no frame is drawn
+    frames = page.execute_script("return window.studio.frames")
+    time.sleep(0.5)
+    assert page.execute_script("return window.studio.frames") == frames
     target = server.session.vertices.mean(axis=0)
     assert abs(np.linalg.norm(p1 - target) - np.linalg.norm(p0 - target)) < 1e-3 * np.linalg.norm(p0 - target)
 

@@ -24,6 +24,13 @@ scene.add(sun);
 const studio = { ready: false, lam: 0, version: 0, family: null, lams: [], frames: 0, error: null,
                  pending: 0 };
 window.studio = studio;
+// frames are drawn when something changed (positions, colours, the camera, the view's options),
+// not continuously: an edit's answer is drawn at once instead of after the frame in progress, and
+// an idle page leaves the processor to the solver.  ?continuous=1 draws every frame (benchmarks).
+studio.continuous = new URLSearchParams(location.search).get("continuous") === "1";
+let dirty = true;
+const redraw = () => { dirty = true; };
+studio.redraw = redraw;
 studio.softwareGL = softwareGL;
 // what the page shows, for tests and scripts: the positions and weights it holds
 studio.positions = () => (geometry ? Array.from(geometry.getAttribute("position").array) : []);
@@ -78,6 +85,7 @@ function build(positions) {
   $("radius").min = (s.radius / 100).toFixed(4); $("radius").max = (s.radius / 2).toFixed(4);
   $("radius").step = (s.radius / 200).toFixed(5); $("radius").value = (s.radius / 10).toFixed(4);
   showRadius();
+  redraw();
 }
 
 function setPositions(buf) {
@@ -86,7 +94,7 @@ function setPositions(buf) {
   const attr = geometry.getAttribute("position");
   attr.array.set(p); attr.needsUpdate = true;
   geometry.computeVertexNormals(); geometry.computeBoundingSphere();
-  studio.positionsAt = performance.now();
+  studio.positionsAt = performance.now(); redraw();
   if (studio.editAt !== null) { studio.awaitingFrame = studio.editAt; studio.editAt = null; }
 }
 // latency of an edit: from the pointer event to the end of the first frame drawn with its answer
@@ -99,7 +107,7 @@ function setSomePositions(buf) {          // PSUB: uint32 k, k indices, k × 3 p
   for (let j = 0; j < k; j++) { const i = 3 * idx[j]; a.array[i] = p[3 * j]; a.array[i + 1] = p[3 * j + 1]; a.array[i + 2] = p[3 * j + 2]; }
   a.needsUpdate = true;
   geometry.computeVertexNormals();
-  studio.positionsAt = performance.now();
+  studio.positionsAt = performance.now(); redraw();
   if (studio.editAt !== null) { studio.awaitingFrame = studio.editAt; studio.editAt = null; }
 }
 
@@ -130,7 +138,7 @@ function paintColours() {
     else if (field) diverging(field[i] / scale, c.array, 3 * i);
     else { c.array[3 * i] = 0.82; c.array[3 * i + 1] = 0.8; c.array[3 * i + 2] = 0.76; }
   }
-  c.needsUpdate = true;
+  c.needsUpdate = true; redraw();
 }
 const fieldMode = () => { const m = $("colours").value; return m === "curvature" || m === "displacement" ? m : null; };
 function requestField() {                  // of the shape shown: the slider's preview when it is off 0
@@ -200,7 +208,8 @@ $("lam").addEventListener("input", () => {
 $("apply").onclick = () => send({ op: "apply", value: Number($("lam").value) });
 $("undo").onclick = () => send({ op: "undo" });
 $("redo").onclick = () => send({ op: "redo" });
-$("wire").onchange = () => { if (wire) wire.visible = $("wire").checked; };
+$("wire").onchange = () => { if (wire) wire.visible = $("wire").checked; redraw(); };
+controls.addEventListener("change", redraw);
 $("turntable").onchange = () => { controls.autoRotate = $("turntable").checked; };
 controls.autoRotateSpeed = 4.0;                 // one turn in 15 s
 // the family's options: any change solves the family again
@@ -238,7 +247,7 @@ window.addEventListener("drop", (e) => {
 studio.split = 0.5;
 const divider = $("divider");
 $("split").onchange = () => { divider.style.display = $("split").checked ? "block" : "none"; placeDivider(); };
-function placeDivider() { divider.style.left = `${100 * studio.split}%`; }
+function placeDivider() { divider.style.left = `${100 * studio.split}%`; redraw(); }
 divider.addEventListener("pointerdown", (e) => {
   divider.setPointerCapture(e.pointerId);
   const move = (ev) => {
@@ -319,16 +328,18 @@ function moveRing(e) {
   pointer.set(((e.clientX - r.left) / r.width) * 2 - 1, -((e.clientY - r.top) / r.height) * 2 + 1);
   raycaster.setFromCamera(pointer, camera);
   const h = on ? raycaster.intersectObject(surface, false) : [];
+  const was = ring.visible;
   ring.visible = h.length > 0;
-  if (!ring.visible) return;
+  if (!ring.visible) { if (was) redraw(); return; }
   const normal = h[0].face.normal.clone().transformDirection(surface.matrixWorld);
   ring.position.copy(h[0].point);
   ring.quaternion.setFromUnitVectors(new THREE.Vector3(0, 0, 1), normal);
   ring.scale.setScalar(Number($("radius").value));
   studio.ring = { visible: true, center: ring.position.toArray() };
+  redraw();
 }
 renderer.domElement.addEventListener("pointermove", (e) => { moveRing(e); if (stroking) edit(e); });
-renderer.domElement.addEventListener("pointerleave", () => { ring.visible = false; });
+renderer.domElement.addEventListener("pointerleave", () => { ring.visible = false; redraw(); });
 window.addEventListener("pointerup", () => { stroking = false; controls.enabled = true; });
 const clearWaiting = ws.onmessage;
 ws.onmessage = (ev) => { clearWaiting(ev); if (typeof ev.data === "string") waiting = false; };
@@ -338,6 +349,7 @@ function resize() {
   const w = view.clientWidth, h = view.clientHeight;
   renderer.setSize(w, h, false); renderer.domElement.style.width = w + "px";
   renderer.domElement.style.height = h + "px"; camera.aspect = w / h; camera.updateProjectionMatrix();
+  redraw();
 }
 window.addEventListener("resize", resize);
 resize();
@@ -352,7 +364,9 @@ function draw() {
   renderer.setScissorTest(false);
 }
 renderer.setAnimationLoop(() => {
-  controls.update(); draw(); studio.frames++;
+  controls.update();                  // turntable and damping: moves the camera, which asks for a frame
+  if (!dirty && !studio.continuous) return;
+  dirty = false; draw(); studio.frames++;
   if (studio.awaitingFrame !== null) {
     renderer.getContext().finish();                 // the frame is drawn, not just queued
     studio.latencies.push(performance.now() - studio.awaitingFrame); studio.awaitingFrame = null;
