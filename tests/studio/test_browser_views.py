@@ -200,3 +200,20 @@ def test_open_a_file_from_the_dialog(page, server, tmp_path):
     np.testing.assert_allclose(server.session.shape_at(-20.0), sf.flow(sf.load(path), -20.0).vertices,
                                rtol=0, atol=1e-6)
     assert not leftovers()
+
+
+def test_drop_a_file_on_the_page(page, server, tmp_path):
+    mesh = cube_sphere(5)
+    path = tmp_path / "dropped.off"
+    sf.save(path, mesh)
+    page.execute_script("""
+        const dt = new DataTransfer();
+        dt.items.add(new File([arguments[0]], 'dropped.off'));
+        document.getElementById('view').dispatchEvent(new DragEvent('drop', {dataTransfer: dt, bubbles: true,
+                                                                              cancelable: true}));""",
+                        path.read_text())
+    wait(page, "return window.studio.name === 'dropped.off' && window.studio.ready && "
+               "window.studio.family.state === 'done'")
+    settled(page, server)
+    np.testing.assert_array_equal(shown(page), sf.load(path).vertices.astype(np.float32))
+    assert server.session.mesh.n_faces == mesh.n_faces and not leftovers()
