@@ -283,3 +283,27 @@ def test_results_do_not_depend_on_the_thread_count():
     np.testing.assert_array_equal(out[1][0], out[2][0])
     np.testing.assert_array_equal(out[1][1], out[2][1])
     assert out[1][2] == out[2][2]
+
+
+@pytest.mark.parametrize("name,mesh", [MESHES[i] for i in (2, 4)], ids=[MESHES[i][0] for i in (2, 4)])
+def test_pair_pattern_both_paths_against_the_numpy_pattern(name, mesh):
+    """Strictly sorted pairs (a mesh's edges) take the kernel's no-sort path, other pairs the general
+    one; both give the NumPy pattern and every entry's position."""
+    from shapeflow.operators import compiled
+    from shapeflow.operators.pattern import csr_pattern
+
+    n = mesh.n_vertices
+    edges = _fresh(mesh).topology.edges.astype(np.int32)
+    rng = np.random.default_rng(5)
+    shuffled = edges[rng.permutation(edges.shape[0])]
+    assert compiled._strictly_sorted(edges) and not compiled._strictly_sorted(shuffled)
+    for pairs in (edges, shuffled):
+        P = pairs.shape[0]
+        rows = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])
+        cols = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)])
+        indptr, indices, entry_at = csr_pattern(rows, cols, n)
+        pos = np.empty_like(entry_at)
+        pos[entry_at] = np.arange(entry_at.size)
+        got = compiled.pair_pattern(pairs, n)
+        for x, y in zip(got, (indptr, indices, pos[:P], pos[P:2 * P], pos[2 * P:])):
+            np.testing.assert_array_equal(x, y)

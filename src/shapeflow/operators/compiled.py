@@ -155,13 +155,65 @@ def pair_pattern(pairs, n):
     nnz = 2 * P + n
     indptr = zeros(n + 1, np.int32)
     indices = np.empty(nnz, np.int32)
-    tag = np.empty(nnz, np.int32)
     pos_upper = np.empty(P, np.int32)
     pos_lower = np.empty(P, np.int32)
     pos_diag = np.empty(n, np.int32)
-    _pair_pattern(pairs, n, indptr, indices, tag, pos_upper, pos_lower, pos_diag, np.empty(n, np.int32),
-                  get_num_threads())
+    if _strictly_sorted(pairs):     # the edges of a mesh without chords: every row is in order as placed
+        _sorted_pair_pattern(pairs, n, indptr, indices, pos_upper, pos_lower, pos_diag, zeros(n + 1, np.int32),
+                             zeros(n, np.int32), get_num_threads())
+    else:
+        _pair_pattern(pairs, n, indptr, indices, np.empty(nnz, np.int32), pos_upper, pos_lower, pos_diag,
+                      np.empty(n, np.int32), get_num_threads())
     return indptr, indices, pos_upper, pos_lower, pos_diag
+
+
+@njit(cache=True)
+def _strictly_sorted(pairs):
+    """Every pair (a, b) has a < b and the pairs increase lexicographically (no duplicates)."""
+    pa = -1
+    pb = -1
+    for p in range(pairs.shape[0]):
+        a = pairs[p, 0]
+        b = pairs[p, 1]
+        if a >= b or a < pa or (a == pa and b <= pb):
+            return False
+        pa = a
+        pb = b
+    return True
+
+
+@njit(parallel=True, cache=True)
+def _sorted_pair_pattern(pairs, n, indptr, indices, pos_upper, pos_lower, pos_diag, up, fill, nt):
+    """``_pair_pattern`` for strictly sorted pairs: row i holds its lower entries (the pairs (a, i),
+    in pair order, so by ascending a), its diagonal, then its upper entries (the pairs (i, b), which
+    are consecutive and by ascending b): no sorting, no duplicates to order."""
+    P = pairs.shape[0]
+    for p in range(P):
+        up[np.uint64(pairs[p, 0] + 1)] += 1
+        fill[np.uint64(pairs[p, 1])] += 1
+    for i in range(n):
+        indptr[i + 1] = indptr[i] + fill[i] + 1 + up[i + 1]
+        up[i + 1] += up[i]                   # up[i]: the first pair of row i
+    for i in prange(n):
+        q = indptr[i] + fill[i]
+        indices[q] = i
+        pos_diag[i] = q
+        fill[i] = indptr[i]                  # from here: where row i's next lower entry goes
+    for p in prange(P):
+        a = np.uint64(pairs[p, 0])
+        q = indptr[a + 1] - up[a + 1] + p     # the upper entries close their row, in pair order
+        indices[q] = pairs[p, 1]
+        pos_upper[p] = q
+    for t in prange(nt):                     # thread t places the lower entries of its rows, in pair order
+        v0 = t * n // nt
+        w = np.uint64((t + 1) * n // nt - v0)
+        for p in range(P):
+            b = pairs[p, 1]
+            if np.uint64(b - v0) < w:
+                q = fill[np.uint64(b)]
+                indices[np.uint64(q)] = pairs[p, 0]
+                pos_lower[p] = q
+                fill[np.uint64(b)] = q + 1
 
 
 @njit(parallel=True, cache=True)
