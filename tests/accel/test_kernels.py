@@ -296,7 +296,7 @@ def test_pair_pattern_both_paths_against_the_numpy_pattern(name, mesh):
     edges = _fresh(mesh).topology.edges.astype(np.int32)
     rng = np.random.default_rng(5)
     shuffled = edges[rng.permutation(edges.shape[0])]
-    assert compiled._strictly_sorted(edges) and not compiled._strictly_sorted(shuffled)
+    assert compiled.strictly_sorted(edges) and not compiled.strictly_sorted(shuffled)
     for pairs in (edges, shuffled):
         P = pairs.shape[0]
         rows = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])

@@ -36,24 +36,24 @@ def assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
 
     Same cotangent formulas and order of operations per corner as
     ``operators.corner_cotangents``, same locking rules; the pair weights and
-    ring areas are summed in corner order instead of by ``bincount`` (equal to
-    rounding).  Returns pair weights (P,), ring areas (n,), locked (n,) and
+    ring areas are summed in corner order instead of by ``bincount``, and a
+    triangle's three corner triangles (the triangle itself) are computed once
+    and weighted by 3 (equal to rounding).  Returns pair weights (P,), ring areas (n,), locked (n,) and
     the number of excluded corner triangles.
     """
     elen2 = np.empty(edges.shape[0])
     locked = zeros(n, np.bool_)
     pw = zeros(P)
     ring = zeros(n)
-    n_bad = _assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
-                              blender_rules, rel_edge_tol, rel_shape_tol, blender_min, flt_eps,
-                              elen2, locked, pw, ring)
+    _lock_short_edges(V, fi, offsets, corner_edge, edges, blender_rules, rel_edge_tol, blender_min, elen2, locked)
+    n_bad = _assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, blender_rules, rel_shape_tol,
+                              blender_min, flt_eps, locked, pw, ring)
     return pw, ring, locked, int(n_bad)
 
 
 @njit(cache=True)
-def _assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
-                      blender_rules, rel_edge_tol, rel_shape_tol, blender_min, flt_eps,
-                      elen2, locked, pw, ring):
+def _lock_short_edges(V, fi, offsets, corner_edge, edges, blender_rules, rel_edge_tol, blender_min, elen2, locked):
+    """Lock both ends of every edge shorter than the rule's threshold."""
     m = offsets.size - 1
     n_edges = elen2.size
     # pass 1: squared edge lengths, from each corner's half-edge curr -> next
@@ -83,7 +83,14 @@ def _assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
             if elen2[e] <= thr:
                 locked[edges[e, 0]] = True
                 locked[edges[e, 1]] = True
-    # pass 2: per corner triangle (prev, curr, next), face by face (weights by face size)
+
+
+@njit(cache=True)
+def _assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, blender_rules, rel_shape_tol,
+                      blender_min, flt_eps, locked, pw, ring):
+    """Per corner triangle (prev, curr, next), face by face (weights by face size): the pair weights,
+    ring areas, locks of bad corner triangles; returns their number."""
+    m = offsets.size - 1
     n_bad = 0
     for f in range(m):
         o = offsets[f]
@@ -94,12 +101,47 @@ def _assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
         else:
             wf = 0.5
             awf = 1.0
+        if sz == 3:
+            # a triangle's three corner triangles are the triangle itself: its cotangents and area once,
+            # from the corner triangle of corner o + 1 (prev o, next o + 2), weighted by 3 (equal to the
+            # corner-by-corner sums to rounding, a third of the work).  Written out here: a helper
+            # function, even inlined, made this loop three times slower.
+            ia = np.uint64(fi[o])
+            ib = np.uint64(fi[o + 1])
+            ic = np.uint64(fi[o + 2])
+            lp, ln, dot, d = corner_triangle(V[ia, 0], V[ia, 1], V[ia, 2], V[ib, 0], V[ib, 1], V[ib, 2],
+                                             V[ic, 0], V[ic, 1], V[ic, 2])
+            if blender_rules:
+                if 0.5 * d < blender_min:
+                    locked[ia] = True
+                    locked[ib] = True
+                    locked[ic] = True
+                bad = not (d > flt_eps)
+            else:
+                ls = lp + ln - 2.0 * dot
+                bad = d <= rel_shape_tol * max(max(lp, ln), ls)
+                if bad:
+                    locked[ia] = True
+                    locked[ib] = True
+                    locked[ic] = True
+            ca = 1.5 * d * awf
+            ring[ia] += ca
+            ring[ib] += ca
+            ring[ic] += ca
+            if bad:
+                n_bad += 3
+                continue
+            inv = 3.0 * wf / d if d > 0.0 else 0.0
+            pw[np.uint64(corner_edge[o + 1])] += (lp - dot) * inv    # angle at a, opposite b-c
+            pw[np.uint64(corner_edge[o])] += (ln - dot) * inv        # angle at c, opposite a-b
+            pw[np.uint64(skip_pair[o + 1])] += dot * inv             # angle at b, opposite a-c
+            continue
         for j in range(sz):
             k = o + j
-            kp = o + (j + sz - 1) % sz
+            kp = k - 1 if j > 0 else o + sz - 1          # no integer division in the corner loop
             ia = np.uint64(fi[kp])
             ib = np.uint64(fi[k])
-            ic = np.uint64(fi[o + (j + 1) % sz])
+            ic = np.uint64(fi[k + 1 if j + 1 < sz else o])
             lp, ln, dot, d = corner_triangle(V[ia, 0], V[ia, 1], V[ia, 2], V[ib, 0], V[ib, 1], V[ib, 2],
                                      V[ic, 0], V[ic, 1], V[ic, 2])
             if blender_rules:
@@ -158,7 +200,7 @@ def pair_pattern(pairs, n):
     pos_upper = np.empty(P, np.int32)
     pos_lower = np.empty(P, np.int32)
     pos_diag = np.empty(n, np.int32)
-    if _strictly_sorted(pairs):     # the edges of a mesh without chords: every row is in order as placed
+    if strictly_sorted(pairs):     # the edges of a mesh without chords: every row is in order as placed
         _sorted_pair_pattern(pairs, n, indptr, indices, pos_upper, pos_lower, pos_diag, zeros(n + 1, np.int32),
                              zeros(n, np.int32), get_num_threads())
     else:
@@ -168,7 +210,7 @@ def pair_pattern(pairs, n):
 
 
 @njit(cache=True)
-def _strictly_sorted(pairs):
+def strictly_sorted(pairs):
     """Every pair (a, b) has a < b and the pairs increase lexicographically (no duplicates)."""
     pa = -1
     pb = -1
