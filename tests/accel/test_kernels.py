@@ -106,9 +106,10 @@ def test_repeated_vertex_found(forced):
         sf.Mesh([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], [[0, 1, 2], [0, 2, 3, 2]])
 
 
-def _broken_layouts():
-    """(name, sizes, indices) on a 30 x 30 grid's quads, each broken in one or two faces."""
-    g = meshgen.grid(30, 30, mix=0.3, seed=2)
+def _broken_layouts(mix=0.3):
+    """(name, sizes, indices) on a 30 x 30 grid of quads (``mix``: the share split into triangles),
+    each broken in one or two faces."""
+    g = meshgen.grid(30, 30, mix=mix, seed=2)
     S, I, O = g.face_sizes.copy(), g.face_indices.copy(), g.topology.face_offsets
     m = S.size
     out = [("valid", S, I)]
@@ -130,9 +131,11 @@ def _broken_layouts():
     return g.vertices, out
 
 
-def test_validation_same_verdict_and_message():
-    """The compiled one-pass check (fast path) changes no verdict and no message."""
-    V, cases = _broken_layouts()
+@pytest.mark.parametrize("mix", [0.3, 1.0], ids=["mixed", "triangles"])
+def test_validation_same_verdict_and_message(mix):
+    """The compiled one-pass check (fast path; triangles have their own branch) changes no verdict
+    and no message."""
+    V, cases = _broken_layouts(mix)
 
     def verdict(S, I):
         try:

@@ -60,16 +60,18 @@ def build_operator(mesh: Mesh, V: np.ndarray, scheme: str, blender: bool, normal
 
     if blender:
         boundary = t.vertex_edge_count != t.vertex_corner_count
-        sel = boundary[edges[:, 0]] & boundary[edges[:, 1]] if edges.size else np.zeros(0, bool)
-        ub = edges[sel]
+        if boundary.any():
+            ub = edges[boundary[edges[:, 0]] & boundary[edges[:, 1]]]
+        else:                  # a closed mesh: no per-edge test
+            ub = np.zeros((0, 2), edges.dtype)
         el = lengths(ub)
         # Blender keeps the raw length as the weight of a too-short edge (its ends are locked)
         ue = np.where(el < 1e-5, el, 1.0 / np.where(el < 1e-5, 1.0, el))
         mass = deg if normalized else 4.0 * ring * deg
     else:
         boundary = t.boundary_vertex_mask.copy()
-        sel = t.boundary_edge_mask & ~locked[edges[:, 0]] & ~locked[edges[:, 1]]
-        ub = edges[sel]
+        ub = edges[t.boundary_edge_mask]     # few: only these are tested for locks
+        ub = ub[~locked[ub[:, 0]] & ~locked[ub[:, 1]]]
         el = lengths(ub)
         ue = 1.0 / el  # short edges were locked above, so el > 0 here
         mass = deg if normalized else 2.0 * ring

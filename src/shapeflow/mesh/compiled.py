@@ -141,6 +141,15 @@ def _first_bad_face(fi, offsets, n, nt):
         for f in range(f0, f1):
             s = offsets[f]
             e = offsets[f + 1]
+            if e - s == 3:                   # triangles, written out: most faces of most meshes
+                va = fi[s]
+                vb = fi[s + 1]
+                vc = fi[s + 2]
+                if (np.uint64(va) >= np.uint64(n) or np.uint64(vb) >= np.uint64(n) or np.uint64(vc) >= np.uint64(n)
+                        or va == vb or vb == vc or va == vc):
+                    first[t] = f
+                    break
+                continue
             bad = e - s < 3
             for a in range(s, e):
                 va = fi[a]

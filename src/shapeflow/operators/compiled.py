@@ -45,28 +45,24 @@ def assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
     locked = zeros(n, np.bool_)
     pw = zeros(P)
     ring = zeros(n)
-    _lock_short_edges(V, fi, offsets, corner_edge, edges, blender_rules, rel_edge_tol, blender_min, elen2, locked)
+    _lock_short_edges(V, edges, blender_rules, rel_edge_tol, blender_min, elen2, locked)
     n_bad = _assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, blender_rules, rel_shape_tol,
                               blender_min, flt_eps, locked, pw, ring)
     return pw, ring, locked, int(n_bad)
 
 
 @njit(cache=True)
-def _lock_short_edges(V, fi, offsets, corner_edge, edges, blender_rules, rel_edge_tol, blender_min, elen2, locked):
+def _lock_short_edges(V, edges, blender_rules, rel_edge_tol, blender_min, elen2, locked):
     """Lock both ends of every edge shorter than the rule's threshold."""
-    m = offsets.size - 1
     n_edges = elen2.size
-    # pass 1: squared edge lengths, from each corner's half-edge curr -> next
-    for f in range(m):
-        o = offsets[f]
-        e = offsets[f + 1]
-        for k in range(o, e):
-            a = np.uint64(fi[k])
-            b = np.uint64(fi[k + 1] if k + 1 < e else fi[o])
-            dx = V[b, 0] - V[a, 0]
-            dy = V[b, 1] - V[a, 1]
-            dz = V[b, 2] - V[a, 2]
-            elen2[np.uint64(corner_edge[k])] = dx * dx + dy * dy + dz * dz
+    # squared edge lengths, edge by edge (low end to high end: the same bits as from either half-edge)
+    for e in range(n_edges):
+        a = np.uint64(edges[e, 0])
+        b = np.uint64(edges[e, 1])
+        dx = V[b, 0] - V[a, 0]
+        dy = V[b, 1] - V[a, 1]
+        dz = V[b, 2] - V[a, 2]
+        elen2[e] = dx * dx + dy * dy + dz * dz
     if blender_rules:
         thr = blender_min * blender_min
         for e in range(n_edges):
