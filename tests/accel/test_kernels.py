@@ -310,3 +310,19 @@ def test_pair_pattern_both_paths_against_the_numpy_pattern(name, mesh):
         got = compiled.pair_pattern(pairs, n)
         for x, y in zip(got, (indptr, indices, pos[:P], pos[P:2 * P], pos[2 * P:])):
             np.testing.assert_array_equal(x, y)
+
+
+def test_max_row_distance_compiled_and_numpy(forced):
+    from shapeflow.flow.solver import max_row_distance
+
+    rng = np.random.default_rng(3)
+    A = rng.standard_normal((10_000, 3))
+    B = A + 1e-3 * rng.standard_normal((10_000, 3))
+    B[7777] += [0.3, -0.4, 1.2]                               # the farthest row: 1.3 away
+    fast = max_row_distance(A, B)
+    with kernels.enabled(False):
+        slow = max_row_distance(A, B)
+    ref = float(np.sqrt(((A - B) ** 2).sum(axis=1)).max())
+    assert abs(fast - ref) <= 1e-15 * ref and abs(slow - ref) <= 1e-15 * ref and abs(ref - 1.3) < 0.01
+    B[5] = np.nan
+    assert np.isnan(max_row_distance(A, B))

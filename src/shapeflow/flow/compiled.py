@@ -175,3 +175,17 @@ def untake_free(Y, inv, free, V, out):
             out[v, 0] = V[v, 0]
             out[v, 1] = V[v, 1]
             out[v, 2] = V[v, 2]
+
+
+@njit(cache=True)
+def max_row_distance(A, B):
+    """max_i |A_i − B_i| over the rows of two (n, 3) arrays, in one pass without temporaries."""
+    best = 0.0
+    for i in range(A.shape[0]):
+        d0 = A[i, 0] - B[i, 0]
+        d1 = A[i, 1] - B[i, 1]
+        d2 = A[i, 2] - B[i, 2]
+        s = d0 * d0 + d1 * d1 + d2 * d2
+        if s > best or s != s:
+            best = s
+    return np.sqrt(best)

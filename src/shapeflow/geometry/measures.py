@@ -19,7 +19,7 @@ SCALE_LO, SCALE_HI = 2.0 ** -100, 2.0 ** 100
 
 def pow2_exponent(V: np.ndarray) -> int:
     """0 for coordinates within [SCALE_LO, SCALE_HI], else k with max|V| = f·2^k, f in [0.5, 1)."""
-    m = float(np.abs(V).max()) if V.size else 0.0
+    m = max(float(V.max()), -float(V.min())) if V.size else 0.0     # max |V| without a copy (NaN stays NaN)
     if m == 0.0 or SCALE_LO <= m <= SCALE_HI:
         return 0
     return int(np.frexp(m)[1])
