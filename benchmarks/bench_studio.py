@@ -62,7 +62,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--levels", type=int, default=2)
     ap.add_argument("--dabs", type=int, default=40)
-    ap.add_argument("--rounds", type=int, default=2, help="drags in each drawing mode, interleaved")
+    ap.add_argument("--rounds", type=int, default=3, help="drags in each drawing mode, interleaved")
     a = ap.parse_args()
     from shapeflow.studio import StudioServer
     from shapeflow.studio.headless import chromium, chromium_page, wait
@@ -88,10 +88,12 @@ def main() -> int:
                     wait(d, "return window.studio && window.studio.ready && window.studio.family.state === 'done'",
                          300)
                 lat[mode] += dabs(d, a.dabs, size)
-        # the page is now drawing continuously: its frame rate is the cost of one frame
+        # drawing every frame (the last page): the frame rate is the cost of one frame
         idle = d.execute_async_script("""
             const done = arguments[0], f0 = window.studio.frames, t0 = performance.now();
             setTimeout(() => done((window.studio.frames - f0) / ((performance.now() - t0) / 1000)), 2000);""")
+        d.get(srv.url)                                  # scrubbing on the default page
+        wait(d, "return window.studio && window.studio.ready && window.studio.family.state === 'done'", 300)
         scrub = [d.execute_async_script(SCRUB)]
         d.execute_script("const c = document.getElementById('colours'); c.value = 'curvature';"
                          "c.dispatchEvent(new Event('change'));")

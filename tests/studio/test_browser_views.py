@@ -99,6 +99,25 @@ def test_colours_follow_the_slider(page, server):
     wait(page, "return window.studio.pending === 0")
 
 
+def test_a_fast_slider_ends_on_its_last_value(page, server):
+    """Input events faster than the answers, while the family is solved again after an edit and its
+    progress goes to the page at the same time: one request in flight, the newest value queued,
+    and the page ends on the shape of the last value."""
+    settled(page, server)
+    c = server.session.vertices[200].tolist()        # an edit: the family is solved again while the slider runs,
+    page.execute_script(f"window.studio.send({{op: 'dab', center: {c}, radius: 0.1, lam: -20}});")   # its progress
+    settled(page, server)                                                                      # sent meanwhile
+    page.execute_script("const s = document.getElementById('lam');"
+                        "for (let v = 0; v >= -75; v -= 3) { s.value = v; s.dispatchEvent(new Event('input')); }")
+    wait(page, "return window.studio.pending === 0 && window.studio.family.state === 'done'")
+    page.execute_script("const s = document.getElementById('lam'); s.value = -75; s.dispatchEvent(new Event('input'));")
+    wait(page, "return window.studio.pending === 0")
+    assert page.execute_script("return window.studio.lam") == -75
+    np.testing.assert_array_equal(shown(page), server.session.shape_at(-75.0).astype(np.float32))
+    slide(page, 0)
+    wait(page, "return window.studio.pending === 0")
+
+
 def test_split_view_shows_the_input_left_of_the_divider_and_the_turntable_turns(page, server):
     settled(page, server)
     change(page, "wire", checked=False)

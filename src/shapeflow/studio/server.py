@@ -77,8 +77,9 @@ class _Hub:
     def __init__(self, session: StudioSession, lams, name: str = ""):
         self.lams = list(lams)
         self.options: dict = {}
-        self.sockets: set = set()
+        self.sockets: dict = {}      # WebSocketResponse -> its _Outbox
         self.lock = asyncio.Lock()
+        self.watcher: asyncio.Task | None = None
         self.use(session, name)
 
     def use(self, session: StudioSession, name: str = "") -> None:
@@ -104,15 +105,13 @@ class _Hub:
     def solve(self) -> None:
         self.stale = False
         self.session.solve_family(self.lams, **self.options)
-        asyncio.create_task(_watch_family(self))
+        if self.watcher is None or self.watcher.done():     # one watcher follows whichever solve is current
+            self.watcher = asyncio.create_task(_watch_family(self))
 
     async def broadcast(self, *messages) -> None:
-        for ws in list(self.sockets):
-            try:
-                for m in messages:
-                    await (ws.send_bytes(m) if isinstance(m, bytes) else ws.send_str(json.dumps(m)))
-            except (ConnectionError, RuntimeError):      # a tab that went away meanwhile
-                self.sockets.discard(ws)
+        """Queue ``messages`` for every open tab (each tab's own writer sends them in order)."""
+        for box in list(self.sockets.values()):
+            box.put(*messages)
 
     def state(self) -> dict:
         s = self.session
@@ -129,6 +128,36 @@ def _extensions() -> list:
     fmts = FORMATS.values() if isinstance(FORMATS, dict) else FORMATS
     exts = sorted({e.lstrip(".") for f in fmts for e in f.extensions})
     return sorted(exts, key=lambda e: e != "ply")
+
+
+class _Outbox:
+    """The messages waiting for one tab and the one task that sends them, in order.
+
+    Every send to a socket goes through here: two coroutines writing to one aiohttp WebSocket at
+    once (an edit's answer and the family's progress) could leave one of them waiting for a
+    drain that never came, and the tab stopped receiving answers; and a slow tab never holds up
+    the others or the edits."""
+
+    def __init__(self, ws):
+        self.ws = ws
+        self.queue: asyncio.Queue = asyncio.Queue()
+        self.task = asyncio.create_task(self._send())
+
+    def put(self, *messages) -> None:
+        for m in messages:
+            self.queue.put_nowait(m)
+
+    def close(self) -> None:
+        """The socket closed: nothing more can reach the tab."""
+        self.task.cancel()
+
+    async def _send(self) -> None:
+        while True:
+            m = await self.queue.get()
+            try:
+                await (self.ws.send_bytes(m) if isinstance(m, bytes) else self.ws.send_str(json.dumps(m)))
+            except (ConnectionError, RuntimeError):      # the tab went away: drop what is left
+                return
 
 
 def _family_options(msg: dict) -> dict:
@@ -223,9 +252,8 @@ class _Routes:
         hub = self.hub
         ws = self.web.WebSocketResponse(max_msg_size=MAX_MESSAGE, heartbeat=20.0)
         await ws.prepare(request)
-        hub.sockets.add(ws)
-        for m in hub.mesh_frames():
-            await (ws.send_bytes(m) if isinstance(m, bytes) else ws.send_str(json.dumps(m)))
+        box = hub.sockets[ws] = _Outbox(ws)
+        box.put(*hub.mesh_frames())
         try:
             async for msg in ws:
                 if msg.type != self.WSMsgType.TEXT:
@@ -235,9 +263,10 @@ class _Routes:
                         out = await _handle(hub, json.loads(msg.data))
                     await hub.broadcast(*out)
                 except (ShapeflowError, KeyError, TypeError, ValueError) as exc:
-                    await ws.send_str(json.dumps({"type": "error", "message": str(exc)}))
+                    box.put({"type": "error", "message": str(exc)})
         finally:
-            hub.sockets.discard(ws)
+            hub.sockets.pop(ws, None)
+            box.close()
         return ws
 
     async def download(self, request):

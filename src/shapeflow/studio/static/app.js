@@ -200,10 +200,22 @@ function state(m) {
 }
 
 // --- controls ----------------------------------------------------------------
+// one λ request in flight at a time, the latest slider value queued: dragging faster than the
+// server answers shows the newest shape as soon as it can instead of a growing backlog
+let lamSent = null, lamQueued = false;
+function sendLam() {
+  lamSent = studio.lam; lamQueued = false;
+  send({ op: "lam", value: studio.lam, field: fieldMode() });   // the colours follow the preview
+}
+studio.lamAnswered = (m) => {
+  if (lamSent === null || (m.type === "state" && m.lam !== lamSent)) return;
+  lamSent = null;
+  if (lamQueued) sendLam();
+};
 $("lam").addEventListener("input", () => {
   studio.lam = Number($("lam").value);
   $("lam-value").textContent = studio.lam;
-  send({ op: "lam", value: studio.lam, field: fieldMode() });   // the colours follow the preview
+  if (lamSent === null) sendLam(); else lamQueued = true;
 });
 $("apply").onclick = () => send({ op: "apply", value: Number($("lam").value) });
 $("undo").onclick = () => send({ op: "undo" });
@@ -342,7 +354,13 @@ renderer.domElement.addEventListener("pointermove", (e) => { moveRing(e); if (st
 renderer.domElement.addEventListener("pointerleave", () => { ring.visible = false; redraw(); });
 window.addEventListener("pointerup", () => { stroking = false; controls.enabled = true; });
 const clearWaiting = ws.onmessage;
-ws.onmessage = (ev) => { clearWaiting(ev); if (typeof ev.data === "string") waiting = false; };
+ws.onmessage = (ev) => {
+  clearWaiting(ev);
+  if (typeof ev.data !== "string") return;
+  waiting = false;
+  const m = JSON.parse(ev.data);
+  if (m.type === "state" || m.type === "error") studio.lamAnswered(m);
+};
 
 // --- drawing -------------------------------------------------------------------
 function resize() {
