@@ -20,7 +20,7 @@ import sys
 import time
 
 import numpy as np
-from common import SHARED  # noqa: F401,E402  (first: it puts src/ on the path)
+from common import SHARED, median_time  # noqa: F401,E402  (first: it puts src/ on the path)
 
 import shapeflow as sf  # noqa: E402
 
@@ -28,11 +28,13 @@ import shapeflow as sf  # noqa: E402
 SCRUB = """
     const done = arguments[0], s = document.getElementById('lam'), lams = window.studio.lams;
     const f0 = window.studio.frames, t0 = performance.now(); let k = 0, updates = 0, last = null;
+    const w0 = window.studio.work.ms;
     function step() {
       if (window.studio.positionsAt !== last) { updates++; last = window.studio.positionsAt; }
       if (performance.now() - t0 > 3000) {
         const dt = (performance.now() - t0) / 1000;
-        done([(window.studio.frames - f0) / dt, updates / dt]); return;
+        done([(window.studio.frames - f0) / dt, updates / dt, (window.studio.work.ms - w0) / Math.max(updates, 1)]);
+        return;
       }
       s.value = lams[k++ % lams.length]; s.dispatchEvent(new Event('input'));
       requestAnimationFrame(step);
@@ -99,6 +101,24 @@ def main() -> int:
                          "c.dispatchEvent(new Event('change'));")
         wait(d, "return window.studio.field && window.studio.pending === 0")
         scrub.append(d.execute_async_script(SCRUB))      # the colours follow: a field per shape
+    # the server's part of one scrubbing step, timed here: the shape (and its field) as float32 bytes
+    from shapeflow.studio.server import field_scale
+
+    session, lams = srv.session, srv.session.family_status().lams
+
+    def shapes():
+        for x in lams:
+            np.ascontiguousarray(session.shape_at(x), "<f4").tobytes()
+
+    def fields():
+        for x in lams[:5]:
+            v = session.field("curvature", lam=x)
+            np.ascontiguousarray(v, "<f4").tobytes()
+            field_scale(v)
+
+    t_shape = median_time(shapes, 3) / len(lams)
+    t_field = median_time(fields, 3) / 5
+    server = {"": t_shape, ", curvature colours following": t_shape + t_field}
     print(f"shapeflow studio, {mesh.n_vertices:,} vertices ({time.strftime('%Y-%m-%d')}, {os.cpu_count()} cores, "
           f"headless Chromium with SwiftShader)")
     print(f"page ready {t_open:.1f} s after opening; family of {len(srv.session.family_status().lams)} shapes "
@@ -111,8 +131,9 @@ def main() -> int:
     if lat[""] and lat["?continuous=1"]:
         print(f"  on demand / continuous: {np.median(lat['']) / np.median(lat['?continuous=1']):.2f}")
     print(f"drawing every frame: {idle:.1f} frames/s ({1000 / max(idle, 1e-9):.0f} ms a frame)")
-    for what, (fps, shapes) in zip(("", ", curvature colours following"), scrub):
-        print(f"scrubbing the family{what}: {fps:.1f} frames/s drawn, {shapes:.1f} shapes/s received (target 30)")
+    for what, (fps, shapes, work) in zip(("", ", curvature colours following"), scrub):
+        print(f"scrubbing the family{what}: {fps:.1f} frames/s drawn, {shapes:.1f} shapes/s received (target 30); "
+              f"the page's work on messages {work:.1f} ms a shape, server {1e3 * server[what]:.1f} ms a shape")
     return 0
 
 

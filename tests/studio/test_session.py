@@ -182,3 +182,12 @@ def test_fields_of_the_previewed_shape(mesh):
                                rtol=0, atol=1e-14)
     assert np.abs(s.field("displacement")).max() == 0.0          # the current shape is still the input
     np.testing.assert_array_equal(s.input_vertices, mesh.vertices)
+
+
+def test_field_scale_is_the_98th_percentile():
+    from shapeflow.studio.server import field_scale
+
+    values = np.linspace(-3.0, 1.0, 1001)                         # |v| sorted: 0 … 3, 1001 values
+    a = np.sort(np.abs(values))
+    assert field_scale(values) == a[int(0.98 * 1000)]
+    assert field_scale(np.zeros(10)) == 1.0 and field_scale(np.zeros(0)) == 1.0

@@ -48,7 +48,7 @@ from ..geometry.measures import fan_triangles
 from ..io.weights import WEIGHT_EXTENSIONS
 from .session import StudioSession
 
-__all__ = ["make_app", "hub_of", "STATIC", "DEFAULT_LAMS", "MAX_MESSAGE", "MAX_UPLOAD"]
+__all__ = ["make_app", "hub_of", "field_scale", "STATIC", "DEFAULT_LAMS", "MAX_MESSAGE", "MAX_UPLOAD"]
 
 STATIC = Path(__file__).resolve().parent / "static"
 #: the family the slider walks by default: λ = 0 … −240 (figure 1 of the paper)
@@ -172,9 +172,20 @@ def _family_options(msg: dict) -> dict:
             "compat": compat}
 
 
+def field_scale(values: np.ndarray) -> float:
+    """The colour range of a field: the 98th percentile of |value| (O(n), no sort), 1 when that is 0."""
+    a = np.abs(np.asarray(values, dtype=np.float64))
+    if a.size == 0:
+        return 1.0
+    k = int(0.98 * (a.size - 1))
+    v = float(np.partition(a, k)[k])
+    return v if v > 0 and np.isfinite(v) else 1.0
+
+
 def _field_frames(s: StudioSession, name: str, lam) -> list:
     values = s.field(name, lam=lam)
-    return [_frame(b"FLD0", values, "<f4"), {"type": "field", "name": name, "version": s.version, "lam": lam}]
+    return [_frame(b"FLD0", values, "<f4"),
+            {"type": "field", "name": name, "version": s.version, "lam": lam, "scale": field_scale(values)}]
 
 
 async def _handle(hub: _Hub, msg: dict):

@@ -127,9 +127,8 @@ function paintColours() {
   const c = geometry.getAttribute("color"), mode = $("colours").value;
   const field = studio.field && studio.field.name === mode ? studio.field.values : null;
   let scale = 1;
-  if (field) {              // a robust symmetric range: the 98th percentile of |value|
-    const a = Array.from(field, Math.abs).sort((x, y) => x - y);
-    scale = a[Math.floor(0.98 * (a.length - 1))] || 1;
+  if (field) {              // a robust symmetric range: the 98th percentile of |value|, from the server
+    scale = studio.field.scale || 1;
     $("legend-lo").textContent = (-scale).toPrecision(3); $("legend-hi").textContent = scale.toPrecision(3);
   }
   $("legend").style.display = field ? "block" : "none";
@@ -164,7 +163,7 @@ ws.onmessage = (ev) => {
       if (changed && $("colours").value !== "weights" && $("colours").value !== "none") requestField();
     }
     else if (m.type === "field") {
-      studio.field = { name: m.name, version: m.version, lam: m.lam, values: studio.fieldValues };
+      studio.field = { name: m.name, version: m.version, lam: m.lam, scale: m.scale, values: studio.fieldValues };
       paintColours();
     }
     else if (m.type === "error") {
@@ -354,8 +353,11 @@ renderer.domElement.addEventListener("pointermove", (e) => { moveRing(e); if (st
 renderer.domElement.addEventListener("pointerleave", () => { ring.visible = false; redraw(); });
 window.addEventListener("pointerup", () => { stroking = false; controls.enabled = true; });
 const clearWaiting = ws.onmessage;
+studio.work = { ms: 0, messages: 0 };        // time the page spends on messages (not drawing)
 ws.onmessage = (ev) => {
+  const t0 = performance.now();
   clearWaiting(ev);
+  studio.work.ms += performance.now() - t0; studio.work.messages++;
   if (typeof ev.data !== "string") return;
   waiting = false;
   const m = JSON.parse(ev.data);
