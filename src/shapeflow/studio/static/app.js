@@ -68,6 +68,7 @@ function build(positions) {
                                                                  opacity: 0.35 }));
   wire.visible = $("wire").checked;
   scene.add(wire);
+  surface.frustumCulled = wire.frustumCulled = false;   // always in view; their bounds change with every shape
   // the split view's "before": the input as opened, drawn left of the divider
   const bg = new THREE.BufferGeometry();
   bg.setAttribute("position", new THREE.BufferAttribute(base || new Float32Array(positions), 3));
@@ -93,7 +94,7 @@ function setPositions(buf) {
   if (!geometry) { build(new Float32Array(p)); return; }
   const attr = geometry.getAttribute("position");
   attr.array.set(p); attr.needsUpdate = true;
-  geometry.computeVertexNormals(); geometry.computeBoundingSphere();
+  geometry.computeVertexNormals(); boundsStale = true;   // the bounds only for picking: recomputed then
   studio.positionsAt = performance.now(); redraw();
   if (studio.editAt !== null) { studio.awaitingFrame = studio.editAt; studio.editAt = null; }
 }
@@ -106,7 +107,7 @@ function setSomePositions(buf) {          // PSUB: uint32 k, k indices, k × 3 p
   const a = geometry.getAttribute("position");
   for (let j = 0; j < k; j++) { const i = 3 * idx[j]; a.array[i] = p[3 * j]; a.array[i + 1] = p[3 * j + 1]; a.array[i + 2] = p[3 * j + 2]; }
   a.needsUpdate = true;
-  geometry.computeVertexNormals();
+  geometry.computeVertexNormals(); boundsStale = true;
   studio.positionsAt = performance.now(); redraw();
   if (studio.editAt !== null) { studio.awaitingFrame = studio.editAt; studio.editAt = null; }
 }
@@ -199,22 +200,25 @@ function state(m) {
 }
 
 // --- controls ----------------------------------------------------------------
-// one λ request in flight at a time, the latest slider value queued: dragging faster than the
-// server answers shows the newest shape as soon as it can instead of a growing backlog
-let lamSent = null, lamQueued = false;
+// at most two λ requests in flight (the server works on the next shape while the page takes in
+// the last one), the latest slider value queued: dragging faster than the answers shows the
+// newest shape as soon as it can instead of a growing backlog
+const lamSent = [];
+let lamQueued = false;
 function sendLam() {
-  lamSent = studio.lam; lamQueued = false;
+  lamSent.push(studio.lam); lamQueued = false;
   send({ op: "lam", value: studio.lam, field: fieldMode() });   // the colours follow the preview
 }
 studio.lamAnswered = (m) => {
-  if (lamSent === null || (m.type === "state" && m.lam !== lamSent)) return;
-  lamSent = null;
+  const k = m.type === "error" ? 0 : lamSent.indexOf(m.lam);
+  if (k < 0 || !lamSent.length) return;
+  lamSent.splice(k, 1);
   if (lamQueued) sendLam();
 };
 $("lam").addEventListener("input", () => {
   studio.lam = Number($("lam").value);
   $("lam-value").textContent = studio.lam;
-  if (lamSent === null) sendLam(); else lamQueued = true;
+  if (lamSent.length < 2) sendLam(); else lamQueued = true;
 });
 $("apply").onclick = () => send({ op: "apply", value: Number($("lam").value) });
 $("undo").onclick = () => send({ op: "undo" });
@@ -299,11 +303,16 @@ window.addEventListener("keydown", (e) => {            // [ and ] change the rad
 const raycaster = new THREE.Raycaster();
 const pointer = new THREE.Vector2();
 let stroking = false, waiting = false;
+let boundsStale = false;
+function pick() {                          // the surface under the ray (its bounds brought up to date first)
+  if (boundsStale) { geometry.computeBoundingSphere(); boundsStale = false; }
+  return raycaster.intersectObject(surface, false);
+}
 function hit(e) {
   const r = renderer.domElement.getBoundingClientRect();
   pointer.set(((e.clientX - r.left) / r.width) * 2 - 1, -((e.clientY - r.top) / r.height) * 2 + 1);
   raycaster.setFromCamera(pointer, camera);
-  const h = surface ? raycaster.intersectObject(surface, false) : [];
+  const h = surface ? pick() : [];
   return h.length ? h[0].point : null;
 }
 function edit(e) {
@@ -338,7 +347,7 @@ function moveRing(e) {
   const r = renderer.domElement.getBoundingClientRect();
   pointer.set(((e.clientX - r.left) / r.width) * 2 - 1, -((e.clientY - r.top) / r.height) * 2 + 1);
   raycaster.setFromCamera(pointer, camera);
-  const h = on ? raycaster.intersectObject(surface, false) : [];
+  const h = on ? pick() : [];
   const was = ring.visible;
   ring.visible = h.length > 0;
   if (!ring.visible) { if (was) redraw(); return; }
