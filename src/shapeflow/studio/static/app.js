@@ -356,9 +356,11 @@ function moveRing(e) {
   ring.quaternion.setFromUnitVectors(new THREE.Vector3(0, 0, 1), normal);
   ring.scale.setScalar(Number($("radius").value));
   studio.ring = { visible: true, center: ring.position.toArray() };
-  redraw();
+  // during a stroke the frame with the edit's answer shows the circle where it now is: a frame for
+  // the circle alone would only hold that answer back (a software renderer takes ~100 ms a frame)
+  if (!(stroking && waiting)) redraw();
 }
-renderer.domElement.addEventListener("pointermove", (e) => { moveRing(e); if (stroking) edit(e); });
+renderer.domElement.addEventListener("pointermove", (e) => { if (stroking) edit(e); moveRing(e); });
 renderer.domElement.addEventListener("pointerleave", () => { ring.visible = false; redraw(); });
 window.addEventListener("pointerup", () => { stroking = false; controls.enabled = true; });
 const clearWaiting = ws.onmessage;
