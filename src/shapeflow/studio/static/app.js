@@ -94,6 +94,9 @@ function setPositions(buf) {
   if (!geometry) { build(new Float32Array(p)); return; }
   const attr = geometry.getAttribute("position");
   attr.array.set(p); attr.needsUpdate = true;
+  positionsChanged();
+}
+function positionsChanged() {
   geometry.computeVertexNormals(); boundsStale = true;   // the bounds only for picking: recomputed then
   studio.positionsAt = performance.now(); redraw();
   if (studio.editAt !== null) { studio.awaitingFrame = studio.editAt; studio.editAt = null; }
@@ -107,9 +110,7 @@ function setSomePositions(buf) {          // PSUB: uint32 k, k indices, k × 3 p
   const a = geometry.getAttribute("position");
   for (let j = 0; j < k; j++) { const i = 3 * idx[j]; a.array[i] = p[3 * j]; a.array[i + 1] = p[3 * j + 1]; a.array[i + 2] = p[3 * j + 2]; }
   a.needsUpdate = true;
-  geometry.computeVertexNormals(); boundsStale = true;
-  studio.positionsAt = performance.now(); redraw();
-  if (studio.editAt !== null) { studio.awaitingFrame = studio.editAt; studio.editAt = null; }
+  positionsChanged();
 }
 
 function setWeights(buf) {
@@ -152,9 +153,11 @@ const ws = new WebSocket(`ws://${location.host}/ws`);
 ws.binaryType = "arraybuffer";
 const send = (msg) => { studio.pending++; ws.send(JSON.stringify(msg)); };
 studio.send = send;
-ws.onmessage = (ev) => {
+function receive(ev) {
   if (typeof ev.data === "string") {
     const m = JSON.parse(ev.data);
+    waiting = false;                     // an answer: the brush may send its next dab
+    if (m.type === "state" || m.type === "error") studio.lamAnswered(m);
     if (m.type === "mesh") { n = m.n_vertices; dispose(); studio.ready = false; studio.field = null;
                              studio.name = m.name; formats(m.formats || []);
                              studio.lam = 0; $("lam").value = 0; $("lam-value").textContent = 0; }
@@ -180,7 +183,7 @@ ws.onmessage = (ev) => {
   else if (tag === "PSUB") setSomePositions(ev.data);
   else if (tag === "WGT0") setWeights(ev.data);
   else if (tag === "FLD0") studio.fieldValues = new Float32Array(ev.data.slice(4));
-};
+}
 ws.onclose = () => { $("status").textContent = "disconnected: restart shapeflow studio and reload"; };
 
 function state(m) {
@@ -363,16 +366,11 @@ function moveRing(e) {
 renderer.domElement.addEventListener("pointermove", (e) => { if (stroking) edit(e); moveRing(e); });
 renderer.domElement.addEventListener("pointerleave", () => { ring.visible = false; redraw(); });
 window.addEventListener("pointerup", () => { stroking = false; controls.enabled = true; });
-const clearWaiting = ws.onmessage;
 studio.work = { ms: 0, messages: 0 };        // time the page spends on messages (not drawing)
 ws.onmessage = (ev) => {
   const t0 = performance.now();
-  clearWaiting(ev);
+  receive(ev);
   studio.work.ms += performance.now() - t0; studio.work.messages++;
-  if (typeof ev.data !== "string") return;
-  waiting = false;
-  const m = JSON.parse(ev.data);
-  if (m.type === "state" || m.type === "error") studio.lamAnswered(m);
 };
 
 // --- drawing -------------------------------------------------------------------
