@@ -23,6 +23,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
+    import os
     import threading
 
     from .. import params
@@ -31,7 +32,7 @@ def run(args) -> int:
     mesh = load_mesh_arg(args.mesh)
     mib = params.number("--max-upload", args.max_upload, lo=0.001)
     server = StudioServer(mesh, host=args.host, port=args.port, max_upload=int(mib * 2**20),
-                          name=args.mesh.split("/")[-1].split(":")[-1])
+                          name=os.path.basename(args.mesh).removeprefix("example:"))
     eprint(f"shapeflow studio: {mesh.n_vertices:,} vertices at {server.url} (Ctrl-C ends it)")
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         eprint(f"shapeflow studio: warning: listening on {args.host}: anyone who can reach this machine can edit")
