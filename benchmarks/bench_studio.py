@@ -67,7 +67,7 @@ def main() -> int:
     ap.add_argument("--rounds", type=int, default=3, help="drags in each drawing mode, interleaved")
     a = ap.parse_args()
     from shapeflow.studio import StudioServer
-    from shapeflow.studio.headless import chromium, chromium_page, wait
+    from shapeflow.studio.headless import chromium, chromium_page, set_control, wait
 
     if not all(chromium()):
         print("needs Debian's chromium and chromium-driver", file=sys.stderr)
@@ -97,8 +97,7 @@ def main() -> int:
         d.get(srv.url)                                  # scrubbing on the default page
         wait(d, "return window.studio && window.studio.ready && window.studio.family.state === 'done'", 300)
         scrub = [d.execute_async_script(SCRUB)]
-        d.execute_script("const c = document.getElementById('colours'); c.value = 'curvature';"
-                         "c.dispatchEvent(new Event('change'));")
+        set_control(d, "colours", "curvature")
         wait(d, "return window.studio.field && window.studio.pending === 0")
         scrub.append(d.execute_async_script(SCRUB))      # the colours follow: a field per shape
     # the server's part of one scrubbing step, timed here: the shape (and its field) as float32 bytes

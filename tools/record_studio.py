@@ -21,7 +21,7 @@ sys.path.insert(0, str(ROOT / "src"))
 
 import shapeflow as sf  # noqa: E402
 from shapeflow.studio import StudioServer  # noqa: E402
-from shapeflow.studio.headless import chromium_page, wait  # noqa: E402
+from shapeflow.studio.headless import chromium_page, set_control, wait  # noqa: E402
 
 
 class Film:
@@ -47,13 +47,6 @@ class Film:
                             loop=0, quality=72, method=6)
 
 
-def js_set(page, element_id: str, value=None, checked=None, event="change") -> None:
-    js = f"const e = document.getElementById('{element_id}');"
-    js += f"e.value = {value!r};" if value is not None else ""
-    js += f"e.checked = {str(checked).lower()};" if checked is not None else ""
-    page.execute_script(js + f"e.dispatchEvent(new Event('{event}'));")
-
-
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "img" / "studio.webp")
@@ -66,14 +59,14 @@ def main() -> int:
     lams = [float(x) for x in range(0, -201, -10)]
     with StudioServer(mesh, lams=lams, name="spot") as srv, chromium_page(srv.url, size=(1180, 700)) as page:
         film = Film(page, a.width)
-        js_set(page, "colours", "curvature")
+        set_control(page, "colours", "curvature")
         film.shot(700)
         for lam in [*range(-10, -161, -10), *range(-150, -79, 10)]:          # the colours follow the slider
-            js_set(page, "lam", str(lam), event="input")
+            set_control(page, "lam", str(lam), event="input")
             film.shot()
         film.shot(600)
-        js_set(page, "lam", "0", event="input")
-        js_set(page, "colours", "weights")
+        set_control(page, "lam", "0", event="input")
+        set_control(page, "colours", "weights")
         page.execute_script("document.getElementById('mode').value = 'erase';"
                             "document.getElementById('radius').value = 0.09;")
         canvas = page.find_element("css selector", "#view canvas")
@@ -85,14 +78,14 @@ def main() -> int:
         page.execute_script("document.getElementById('mode').value = 'view';")
         film.shot(500)
         for lam in range(-20, -161, -20):                                     # the horns keep their shape
-            js_set(page, "lam", str(lam), event="input")
+            set_control(page, "lam", str(lam), event="input")
             film.shot()
         film.shot(600)
-        js_set(page, "split", checked=True)                                  # before | after
+        set_control(page, "split", checked=True)                                  # before | after
         film.shot(1400)
-        js_set(page, "split", checked=False)
-        js_set(page, "colours", "none")
-        js_set(page, "turntable", checked=True)
+        set_control(page, "split", checked=False)
+        set_control(page, "colours", "none")
+        set_control(page, "turntable", checked=True)
         for _ in range(24):
             film.shot(90)
     a.out.parent.mkdir(parents=True, exist_ok=True)

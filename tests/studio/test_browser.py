@@ -17,6 +17,8 @@ pytest.importorskip("aiohttp", reason="aiohttp (the 'studio' extra) is not insta
 pytest.importorskip("selenium.webdriver", reason="selenium (a test dependency) is not installed")
 from browser import CHROMIUM, DRIVER, canvas_box, chromium_page, pixels, settled, shown, wait  # noqa: E402
 
+from shapeflow.studio.headless import set_control  # noqa: E402
+
 pytestmark = pytest.mark.skipif(not (CHROMIUM and DRIVER), reason="chromium and chromedriver are not installed")
 
 
@@ -37,11 +39,11 @@ def page(server):
 def test_the_slider_shows_the_family(page, server):
     before = shown(page)
     np.testing.assert_array_equal(before, server.session.vertices.astype(np.float32))
-    page.execute_script("const s = document.getElementById('lam'); s.value = -50; s.dispatchEvent(new Event('input'));")
+    set_control(page, "lam", -50, event="input")
     wait(page, "return window.studio.pending === 0")
     np.testing.assert_array_equal(shown(page), server.session.shape_at(-50.0).astype(np.float32))
     assert not np.array_equal(shown(page), before)
-    page.execute_script("const s = document.getElementById('lam'); s.value = 0; s.dispatchEvent(new Event('input'));")
+    set_control(page, "lam", 0, event="input")
     wait(page, "return window.studio.pending === 0")
     np.testing.assert_array_equal(shown(page), before)
 
@@ -115,8 +117,7 @@ def test_colour_fields_and_the_brush_circle(page, server):
     from selenium.webdriver.common.action_chains import ActionChains
 
     settled(page, server)
-    page.execute_script("const c = document.getElementById('colours'); c.value = 'curvature';"
-                        "c.dispatchEvent(new Event('change'));")
+    set_control(page, "colours", "curvature")
     wait(page, "return window.studio.field && window.studio.field.name === 'curvature' && window.studio.pending === 0")
     values = np.array(page.execute_script("return Array.from(window.studio.field.values)"), np.float32)
     np.testing.assert_array_equal(values, server.session.field("curvature").astype(np.float32))
@@ -130,6 +131,5 @@ def test_colour_fields_and_the_brush_circle(page, server):
     center = np.array(page.execute_script("return window.studio.ring.center"))
     V = server.session.vertices
     assert np.linalg.norm(V - center, axis=1).min() < 0.05 * np.linalg.norm(np.ptp(V, axis=0))   # on the surface
-    page.execute_script("document.getElementById('mode').value = 'view';"
-                        "const c = document.getElementById('colours'); c.value = 'weights';"
-                        "c.dispatchEvent(new Event('change'));")
+    page.execute_script("document.getElementById('mode').value = 'view';")
+    set_control(page, "colours", "weights")

@@ -22,6 +22,8 @@ pytest.importorskip("aiohttp", reason="aiohttp (the 'studio' extra) is not insta
 pytest.importorskip("selenium.webdriver", reason="selenium (a test dependency) is not installed")
 from browser import CHROMIUM, DRIVER, chromium_page, pixels, settled, shown, wait  # noqa: E402
 
+from shapeflow.studio.headless import set_control  # noqa: E402
+
 pytestmark = pytest.mark.skipif(not (CHROMIUM and DRIVER), reason="chromium and chromedriver are not installed")
 
 LAMS = [0.0, -20.0, -40.0, -60.0, -80.0]
@@ -46,39 +48,32 @@ def leftovers() -> list:
     return glob.glob(os.path.join(tempfile.gettempdir(), "shapeflow-studio-*"))
 
 
-def change(d, element_id, value=None, checked=None):
-    js = f"const e = document.getElementById('{element_id}');"
-    js += f"e.value = {value!r};" if value is not None else ""
-    js += f"e.checked = {str(checked).lower()};" if checked is not None else ""
-    d.execute_script(js + "e.dispatchEvent(new Event('change'));")
-
-
 def slide(d, lam):
-    d.execute_script(f"const s = document.getElementById('lam'); s.value = {lam}; s.dispatchEvent(new Event('input'));")
+    set_control(d, "lam", lam, event="input")
 
 
 def test_blender_mode_and_the_options_reach_the_family(page, server):
     mesh = server.session.mesh
     paper = sf.flow(mesh, -20.0).vertices
     scale = np.abs(paper - mesh.vertices).max()
-    change(page, "compat", "blender")
-    change(page, "area", checked=True)
+    set_control(page, "compat", "blender")
+    set_control(page, "area", checked=True)
     wait(page, "return window.studio.family.state === 'done' && window.studio.pending === 0 && "
                "window.studio.options.normalized === false")
     ref = sf.flow(mesh, -20.0, compat="blender", normalized=False).vertices   # the library's own flow
     assert np.abs(server.session.shape_at(-20.0) - ref).max() < 1e-5 * scale
     assert np.abs(paper - ref).max() > 0.5 * scale                   # not what the defaults give
-    change(page, "area", checked=False)
-    change(page, "iterations", "2")
-    change(page, "volume", checked=True)
+    set_control(page, "area", checked=False)
+    set_control(page, "iterations", "2")
+    set_control(page, "volume", checked=True)
     wait(page, "return window.studio.family.state === 'done' && window.studio.pending === 0 && "
                "window.studio.options.iterations === 2 && window.studio.options.preserve_volume")
     ref = sf.flow(mesh, -20.0, compat="blender", iterations=2, preserve_volume=True).vertices
     assert np.abs(server.session.shape_at(-20.0) - ref).max() < 1e-5 * scale
-    change(page, "iterations", "0")                                   # refused with the parameter's name
+    set_control(page, "iterations", "0")                                   # refused with the parameter's name
     wait(page, "return window.studio.error !== null && window.studio.error.includes('iterations')")
     for eid, value, checked in (("iterations", "1", None), ("volume", None, False), ("compat", "paper", None)):
-        change(page, eid, value, checked)
+        set_control(page, eid, value, checked=checked)
     wait(page, "return window.studio.family.state === 'done' && window.studio.pending === 0 && "
                "window.studio.options.compat === 'paper' && !window.studio.options.preserve_volume")
     assert np.abs(server.session.shape_at(-20.0) - paper).max() < 1e-5 * scale
@@ -86,7 +81,7 @@ def test_blender_mode_and_the_options_reach_the_family(page, server):
 
 def test_colours_follow_the_slider(page, server):
     settled(page, server)
-    change(page, "colours", "curvature")
+    set_control(page, "colours", "curvature")
     slide(page, -40)
     wait(page, "return window.studio.field && window.studio.field.lam === -40 && window.studio.pending === 0")
     values = np.array(page.execute_script("return Array.from(window.studio.field.values)"), np.float32)
@@ -95,7 +90,7 @@ def test_colours_follow_the_slider(page, server):
     at0 = sf.mean_curvature(server.session.mesh, area="barycentric")
     assert np.abs(ref - at0).max() > 0.1 * np.abs(at0).max()         # the preview's colours are not the input's
     slide(page, 0)
-    change(page, "colours", "weights")
+    set_control(page, "colours", "weights")
     wait(page, "return window.studio.pending === 0")
 
 
@@ -110,7 +105,7 @@ def test_a_fast_slider_ends_on_its_last_value(page, server):
     page.execute_script("const s = document.getElementById('lam');"
                         "for (let v = 0; v >= -75; v -= 3) { s.value = v; s.dispatchEvent(new Event('input')); }")
     wait(page, "return window.studio.pending === 0 && window.studio.family.state === 'done'")
-    page.execute_script("const s = document.getElementById('lam'); s.value = -75; s.dispatchEvent(new Event('input'));")
+    slide(page, -75)
     wait(page, "return window.studio.pending === 0")
     assert page.execute_script("return window.studio.lam") == -75
     np.testing.assert_array_equal(shown(page), server.session.shape_at(-75.0).astype(np.float32))
@@ -120,7 +115,7 @@ def test_a_fast_slider_ends_on_its_last_value(page, server):
 
 def test_split_view_shows_the_input_left_of_the_divider_and_the_turntable_turns(page, server):
     settled(page, server)
-    change(page, "wire", checked=False)
+    set_control(page, "wire", checked=False)
     background = np.array([0x26, 0x27, 0x2b])
 
     def silhouette():
@@ -132,7 +127,7 @@ def test_split_view_shows_the_input_left_of_the_divider_and_the_turntable_turns(
     slide(page, -80)
     wait(page, "return window.studio.pending === 0")
     after = silhouette()
-    change(page, "split", checked=True)
+    set_control(page, "split", checked=True)
     split = silhouette()
     box = page.execute_script("const r = document.querySelector('#view canvas').getBoundingClientRect();"
                               "return [r.left, r.width];")
@@ -143,16 +138,16 @@ def test_split_view_shows_the_input_left_of_the_divider_and_the_turntable_turns(
     rows = slice(30, None)                                           # below the divider's label
     assert (split[rows, left] != before[rows, left]).sum() < 20      # left: the input
     assert (split[rows, right] != after[rows, right]).sum() < 20     # right: the shape shown
-    change(page, "split", checked=False)
+    set_control(page, "split", checked=False)
     slide(page, 0)
-    change(page, "wire", checked=True)
+    set_control(page, "wire", checked=True)
 
     p0 = np.array(page.execute_script("return window.studio.cameraPosition()"))
-    change(page, "turntable", checked=True)
+    set_control(page, "turntable", checked=True)
     frames = page.execute_script("return window.studio.frames")
     wait(page, f"return window.studio.frames > {frames + 5}")
     p1 = np.array(page.execute_script("return window.studio.cameraPosition()"))
-    change(page, "turntable", checked=False)
+    set_control(page, "turntable", checked=False)
     assert np.linalg.norm(p1 - p0) > 1e-3 * np.linalg.norm(p0)
     settled(page, server)                                            # then nothing changes: no frame is drawn
     frames = page.execute_script("return window.studio.frames")

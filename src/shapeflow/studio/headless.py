@@ -17,7 +17,7 @@ from contextlib import contextmanager
 
 from ..errors import OptionalDependencyError
 
-__all__ = ["chromium", "chromium_page", "wait", "READY"]
+__all__ = ["chromium", "chromium_page", "wait", "set_control", "READY"]
 
 #: true once the page drew the mesh and the family is solved
 READY = "return window.studio && window.studio.ready && window.studio.family.state === 'done'"
@@ -67,3 +67,12 @@ def wait(d, script: str, timeout: float = 60.0) -> None:
         time.sleep(0.05)
     st = d.execute_script("const s = window.studio || {}; return [s.pending, s.version, s.error, s.family];")
     raise TimeoutError(f"timed out waiting for: {script} (page: pending, version, error, family = {st})")
+
+
+def set_control(d, element_id: str, value=None, *, checked: bool | None = None, event: str = "change") -> None:
+    """Set a control of the page as a user would: its value and/or checked state, then the event
+    its handler listens to ("change"; "input" for the λ slider)."""
+    js = f"const e = document.getElementById({element_id!r});"
+    js += f"e.value = {value!r};" if value is not None else ""
+    js += f"e.checked = {str(bool(checked)).lower()};" if checked is not None else ""
+    d.execute_script(js + f"e.dispatchEvent(new Event({event!r}));")
