@@ -271,21 +271,29 @@ def test_small_meshes_do_not_use_kernels():
         assert kernels.compiled("mesh", 10**9) is None
 
 
-def test_results_do_not_depend_on_the_thread_count():
+def test_results_do_not_depend_on_the_thread_count(monkeypatch):
     """threads="auto" picks the thread count from the machine's load at each call: the compiled
-    CG sums in fixed blocks and the split dab solve does the same arithmetic on one thread, so
-    the same input gives the same bits however busy the machine is."""
+    Jacobi CG sums in fixed blocks (on one thread in its sequential build, on two in parallel),
+    the Gauss–Seidel CG is sequential, and the split dab solve does the same arithmetic on one
+    thread, so the same input gives the same bits however busy the machine is."""
+    from shapeflow.linalg import spd
+
     m = meshgen.grid(40, 30, jitter=0.1, seed=2, mix=0.3, z=lambda x, y: 0.1 * np.sin(x) * y)
     out = {}
     for t in (1, 2):
         with kernels.use(kernels="force", threads=t):
             a = sf.flow(m, -20.0, solver="cg", iterations=2)
+            monkeypatch.setattr(spd, "DEFAULT_PRECONDITIONER", "jacobi")
+            j = sf.flow(m, -20.0, solver="cg", iterations=2)
+            monkeypatch.setattr(spd, "DEFAULT_PRECONDITIONER", "auto")
             b = sf.Brush(m, lam=-30.0, radius=0.35 * m.diagonal)
             b.dab(m.vertices[m.n_vertices // 2])
-            out[t] = (a.vertices, b.vertices, b.last.solver)
+            out[t] = (a.vertices, b.vertices, b.last.solver, j.vertices)
     np.testing.assert_array_equal(out[1][0], out[2][0])
     np.testing.assert_array_equal(out[1][1], out[2][1])
     assert out[1][2] == out[2][2]
+    np.testing.assert_array_equal(out[1][3], out[2][3])
+    assert np.abs(out[1][3] - out[1][0]).max() > 0     # the two preconditioners did run
 
 
 @pytest.mark.parametrize("name,mesh", [MESHES[i] for i in (2, 4)], ids=[MESHES[i][0] for i in (2, 4)])

@@ -14,7 +14,17 @@ import shapeflow as sf
 from shapeflow.cli import main
 
 paths = importlib.import_module("shapeflow.flow.family_paths")
+from shapeflow.linalg import spd  # noqa: E402
 from shapeflow.linalg.multishift import multishift_cg  # noqa: E402
+
+
+@pytest.fixture(autouse=True)
+def jacobi_flow(monkeypatch):
+    """The family's multishift CG is Jacobi-preconditioned; the flow it is compared with here is too, so
+    both run the same iterates and agree to rounding (``TOL``).  The flow's default on the compiled path,
+    symmetric Gauss–Seidel, meets the same rtol by other iterates: tests/linalg/test_sgs.py."""
+    monkeypatch.setattr(spd, "DEFAULT_PRECONDITIONER", "jacobi")
+
 
 #: mixed signs, zeros, a repeated λ and a ±λ pair (one shift for both)
 LAMS = [0.0, -5.0, 5.0, -50.0, -120.0, 30.0, 0.0, -235.0, -5.0]

@@ -83,6 +83,7 @@ import threading
 from ..errors import ParameterError
 
 __all__ = ["Backend", "current", "use", "enabled", "set_default", "numba_available", "available", "compiled",
+           "sequential",
            "heavy", "small_pages", "zeros", "KERNEL_MODES", "CONSUMERS", "thread_count", "usable_cores",
            "other_runnable"]
 
@@ -201,6 +202,30 @@ def compiled(consumer: str, size: int, *, min_size: int | None = None):
     if k is not None:          # numba may have been imported just now, inside a heavy call
         _apply_threads(k)
     return mod
+
+
+def sequential(kernel, **options):
+    """The sequential twin of a compiled parallel kernel: the same Python function compiled without
+    ``parallel`` (its ``prange`` loops run as ``range``), cached on disk under its own name.
+
+    A kernel runs it when the call has one thread and the twin measured faster than the parallel
+    build on one thread: the Jacobi CG's product and updates (a CG solve of a step on Suzanne 126K
+    triangulated 40 → 37 ms, medians of 25 interleaved rounds, 2026-11-24).  The edge sort's twin
+    was not faster (13.1 vs 12.6 ms), so it has none.  Both builds compute the same sums in the
+    same order, so they give the same bits.
+    """
+    import types
+
+    import numba
+
+    f = kernel.py_func
+    twin = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_sequential", f.__defaults__,
+                              f.__closure__)
+    # its own name: numba's disk cache keys a function by module and qualified name, not by options
+    twin.__qualname__ = f.__qualname__ + "_sequential"
+    twin.__module__ = f.__module__
+    twin.__doc__ = f.__doc__
+    return numba.njit(cache=True, **options)(twin)
 
 
 def zeros(shape, dtype=None):

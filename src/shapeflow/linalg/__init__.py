@@ -1,7 +1,8 @@
 """The linear-algebra layer: every solver shapeflow uses, for the systems the flow and the brush build.
 
-* :mod:`~shapeflow.linalg.spd` — :class:`SPDSolver` (Jacobi CG, sparse
-  Cholesky, SuperLU) with the cost model that picks one;
+* :mod:`~shapeflow.linalg.spd` — :class:`SPDSolver` (CG preconditioned by
+  symmetric Gauss–Seidel or Jacobi, sparse Cholesky, SuperLU) with the cost
+  model that picks one;
 * :mod:`~shapeflow.linalg.chebyshev` — several fixed-operator steps as one
   Chebyshev expansion;
 * :mod:`~shapeflow.linalg.pairs` — :class:`PairMatrix`, a symmetric matrix as its diagonal and
@@ -13,7 +14,7 @@
   :mod:`~shapeflow.linalg.ordering` and the BLAS thread control of
   :mod:`~shapeflow.linalg.blas`.
 
-Compiled twins: :mod:`~shapeflow.linalg.compiled` (CG, Clenshaw step) and
+Compiled twins: :mod:`~shapeflow.linalg.compiled` (both CGs, Clenshaw step) and
 :mod:`~shapeflow.linalg.compiled_split` (the two-thread split solve).
 """
 
@@ -21,8 +22,8 @@ from .chebyshev import chebyshev_coefficients, chebyshev_steps
 from .local import LocalSolver
 from .multishift import MultiShiftResult, multishift_cg
 from .pairs import PairMatrix
-from .spd import DEFAULT_RTOL, METHODS, SolveStats, SPDSolver, cholesky_available, choose_method
+from .spd import DEFAULT_RTOL, METHODS, PRECONDITIONERS, SolveStats, SPDSolver, cholesky_available, choose_method
 
-__all__ = ["SPDSolver", "SolveStats", "METHODS", "DEFAULT_RTOL", "choose_method", "cholesky_available",
-           "chebyshev_coefficients", "chebyshev_steps", "multishift_cg", "MultiShiftResult", "LocalSolver",
-           "PairMatrix"]
+__all__ = ["SPDSolver", "SolveStats", "METHODS", "PRECONDITIONERS", "DEFAULT_RTOL", "choose_method",
+           "cholesky_available", "chebyshev_coefficients", "chebyshev_steps", "multishift_cg", "MultiShiftResult",
+           "LocalSolver", "PairMatrix"]

@@ -21,7 +21,9 @@ def edge_data(fi, offsets, n, it=np.int64):
     vertex (stable), which is the order of a stable argsort of lo·n + hi;
     edges are numbered bucket by bucket.  Walks the faces (``offsets``), so
     the corner_next array is not needed.  The bucketing runs on all threads,
-    each placing the half-edges of its own range of low vertices.
+    each placing the half-edges of its own range of low vertices, and stores
+    each half-edge's high vertex beside its place in the buckets, so that the
+    sort and the numbering read them in order rather than through ``order``.
     """
     c = fi.size
     vt = np.int32 if n < 2**31 - 1 else np.int64
@@ -30,32 +32,42 @@ def edge_data(fi, offsets, n, it=np.int64):
     order = np.empty(c, it)
     start = zeros(n + 1, np.int64)
     ucount = np.empty(n + 1, np.int64)
-    n_e = _edge_sort(fi, offsets, n, lo, hi, order, start, ucount, get_num_threads())
+    bh = np.empty(c, vt)
+    n_e = _edge_sort(fi, offsets, n, lo, hi, bh, order, start, ucount, get_num_threads())
+    del lo, hi
     edges = np.empty((n_e, 2), it)
     starts = np.empty(n_e + 1, it)
     corner_edge = np.empty(c, it)
-    _edge_number(n, hi, order, start, ucount, corner_edge, starts, edges)
+    _edge_number(n, bh, order, start, ucount, corner_edge, starts, edges)
     return edges, corner_edge, starts, order
 
 
 @njit(parallel=True, cache=True)
-def _edge_sort(fi, offsets, n, lo, hi, order, start, ucount, nt):
+def _edge_sort(fi, offsets, n, lo, hi, bh, order, start, ucount, nt):
     """Buckets of half-edges by low vertex, sorted by high vertex; returns the number of edges
-    (``ucount[v]`` = edges of the buckets before v)."""
+    (``ucount[v]`` = edges of the buckets before v).  ``lo``, ``hi``: each corner's half-edge;
+    ``bh``: the high vertices in bucket order (``bh[q]`` belongs to corner ``order[q]``)."""
     c = fi.size
     m = offsets.size - 1
     for f in prange(m):
         o = offsets[f]
         e = offsets[f + 1]
+        if e - o == 3:                  # triangles, written out: most faces of most meshes
+            a = fi[o]
+            b = fi[o + 1]
+            d = fi[o + 2]
+            lo[o] = min(a, b)
+            hi[o] = max(a, b)
+            lo[o + 1] = min(b, d)
+            hi[o + 1] = max(b, d)
+            lo[o + 2] = min(d, a)
+            hi[o + 2] = max(d, a)
+            continue
         for k in range(o, e):
             a = fi[k]
             b = fi[k + 1] if k + 1 < e else fi[o]
-            if a < b:
-                lo[k] = a
-                hi[k] = b
-            else:
-                lo[k] = b
-                hi[k] = a
+            lo[k] = min(a, b)
+            hi[k] = max(a, b)
     # thread t counts and places the half-edges whose low end lies in its range [v0, v1),
     # scanning all corners in order (so every bucket stays in corner order)
     for t in prange(nt):
@@ -75,24 +87,28 @@ def _edge_sort(fi, offsets, n, lo, hi, order, start, ucount, nt):
         for k in range(c):
             j = np.uint64(lo[k] - v0)
             if j < w:
-                order[np.uint64(fill[j])] = k
+                q = np.uint64(fill[j])
+                order[q] = k
+                bh[q] = hi[k]
                 fill[j] += 1
-    # insertion sort of each bucket by hi (stable), then its number of distinct edges
+    # insertion sort of each bucket by its high vertices (stable), then its number of distinct edges
     for v in prange(n):
         s = start[v]
         e = start[v + 1]
         for q in range(s + 1, e):
             k = order[q]
-            h = hi[np.uint64(k)]
+            h = bh[q]
             r = q - 1
-            while r >= s and hi[np.uint64(order[r])] > h:
+            while r >= s and bh[r] > h:
                 order[r + 1] = order[r]
+                bh[r + 1] = bh[r]
                 r -= 1
             order[r + 1] = k
+            bh[r + 1] = h
         u = 0
         prev = -1
         for q in range(s, e):
-            h = hi[np.uint64(order[q])]
+            h = bh[q]
             if h != prev:
                 u += 1
                 prev = h
@@ -104,23 +120,23 @@ def _edge_sort(fi, offsets, n, lo, hi, order, start, ucount, nt):
 
 
 @njit(parallel=True, cache=True)
-def _edge_number(n, hi, order, start, ucount, corner_edge, starts, edges):
-    """Edge ids bucket by bucket: the edges (low, high), where each edge's corners start, each corner's edge."""
+def _edge_number(n, bh, order, start, ucount, corner_edge, starts, edges):
+    """Edge ids bucket by bucket: the edges (low, high), where each edge's corners start, each corner's edge.
+    ``bh``: the high vertices in bucket order."""
     for v in prange(n):
         s = start[v]
         e = start[v + 1]
         eid = ucount[v] - 1
         prev = -1
         for q in range(s, e):
-            k = np.uint64(order[q])
-            h = hi[k]
+            h = bh[q]
             if h != prev:
                 eid += 1
                 prev = h
                 starts[eid] = q
                 edges[eid, 0] = v
                 edges[eid, 1] = h
-            corner_edge[k] = eid
+            corner_edge[np.uint64(order[q])] = eid
     starts[starts.size - 1] = order.size
 
 
