@@ -31,6 +31,12 @@ def seamed(mesh, cut):
     return sf.Mesh.from_csr(V, mesh.face_sizes, fi, corner_attributes={"uv": uv}), shared
 
 
+def _tolerance(m, ref):
+    """The CG's rtol (1e-8) on the displacement, with a margin of 10: two solves of one system whose
+    unknowns are numbered differently agree to that, not to the last bit."""
+    return 1e-7 * np.abs(ref.vertices - m.vertices).max()
+
+
 @requires_shared
 def test_a_soup_smooths_like_the_welded_mesh():
     m = sf.load(MESHES / "spot_quad.obj")
@@ -39,8 +45,9 @@ def test_a_soup_smooths_like_the_welded_mesh():
     w = sf.weld(soup)
     out = sf.unweld(sf.flow(w, -5.0), soup, w)
     ref = sf.flow(m, -5.0)
-    # every copy of a vertex lands where the welded surface puts it
-    np.testing.assert_allclose(out.vertices, ref.vertices[m.face_indices], rtol=0, atol=1e-12)
+    # every copy of a vertex lands where the welded surface puts it, to the solver's tolerance
+    # (weld numbers vertices by first use; Gauss–Seidel-preconditioned CG sweeps in vertex order)
+    np.testing.assert_allclose(out.vertices, ref.vertices[m.face_indices], rtol=0, atol=_tolerance(m, ref))
     # without welding the operator sees separate faces: a soup does not move as a surface would
     alone = sf.flow(soup, -5.0)
     assert np.abs(alone.vertices - ref.vertices[m.face_indices]).max() > 1e-3
@@ -83,7 +90,8 @@ def test_the_command_welds_a_soup_and_says_so(tmp_path, capsys):
     err = capsys.readouterr().err
     assert f"{soup.n_vertices - m.n_vertices} vertices coincide" in err
     out = sf.load(tmp_path / "out.ply")
-    np.testing.assert_allclose(out.vertices, sf.flow(m, -5.0).vertices[m.face_indices], rtol=0, atol=1e-12)
+    ref = sf.flow(m, -5.0)
+    np.testing.assert_allclose(out.vertices, ref.vertices[m.face_indices], rtol=0, atol=_tolerance(m, ref))
     assert main(["info", str(tmp_path / "soup.ply")]) == 0
     assert f"{soup.n_vertices - m.n_vertices} vertices share a position" in capsys.readouterr().out
 

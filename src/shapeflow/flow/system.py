@@ -18,6 +18,7 @@ import scipy.sparse as sp
 
 from .. import accel
 from ..geometry.measures import signed_volume
+from ..linalg import spd
 from ..linalg.pairs import PairMatrix
 from ..linalg.spd import SPDSolver, choose_method
 from ..mesh import Mesh
@@ -213,7 +214,10 @@ class SystemBuilder:
             return "cg"   # single steps; several fixed steps go through _fixed_steps
         if self.solver_method != "auto":
             return self.solver_method
-        return choose_method(n_free, kappa, n_solves, self.rtol)
+        # the compiled CG on the CSR system preconditions with symmetric Gauss–Seidel (SPDSolver)
+        sgs = (accel.compiled("linalg", n_free) is not None and n_free < LEAN_FROM
+               and spd.DEFAULT_PRECONDITIONER != "jacobi")
+        return choose_method(n_free, kappa, n_solves, self.rtol, "sgs" if sgs else "jacobi")
 
     def interior(self, operator: Operator, lam: float, n_solves: int, notes: list, *,
                  lean: bool = False) -> LinearSystem | None:

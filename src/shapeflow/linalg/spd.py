@@ -15,7 +15,8 @@
     flow's systems 7 instead of 14 at λ = 1, 21 instead of 45 at λ = 10, 64
     instead of 150 at λ = 100: the CG of a fresh step on Suzanne 126K
     triangulated 38 → 24 ms on one thread, 2026-11-24); its sweeps are
-    sequential.  ``"auto"`` (default) takes ``"sgs"`` where the compiled
+    sequential and run in the order of the unknowns, so numbering the vertices
+    differently changes a result within the tolerance, not to the last bit.  ``"auto"`` (default) takes ``"sgs"`` where the compiled
     kernels run on a CSR matrix with a positive diagonal, ``"jacobi"``
     elsewhere: with SciPy alone a triangular solve costs ~7 products
     (``spsolve_triangular``), so the NumPy path keeps Jacobi, and the lean
@@ -81,26 +82,34 @@ def cg_maxiter(n: int) -> int:
     return max(200, 10 * int(np.sqrt(n)) + 100)
 
 
-def choose_method(n: int, kappa: float, n_solves: int, rtol: float = DEFAULT_RTOL) -> str:
-    """Pick the back end expected to be fastest.
+def choose_method(n: int, kappa: float, n_solves: int, rtol: float = DEFAULT_RTOL,
+                  preconditioner: str = "jacobi") -> str:
+    """Pick the back end expected to be fastest; ``preconditioner``: the one CG would run ("sgs" on
+    the compiled path, see :class:`SPDSolver`).
 
-    Calibrated with ``benchmarks/bench_flow.py`` on this project's 2-core
+    Jacobi, calibrated with ``benchmarks/bench_flow.py`` on this project's 2-core
     reference machine: on the 126K-vertex Suzanne, a cholespy factorisation
     costs as much as ~185 Jacobi-PCG iterations on three columns and a pair
     of triangular solves ~3 iterations; for surface meshes the factorisation
     grows like n^1.5 and an iteration like n, so the break-even grows like
     sqrt(n).  CG iterations are estimated from the condition number bound.
+    Symmetric Gauss–Seidel (2026-11-24, Suzanne 126K triangulated, one flow step, λ = 3 … 300):
+    its iterations are 0.43–0.5 of Jacobi's (half the bound is used), and a factorisation
+    (1.1–1.5 s) costs ~450 of its iterations (2.5 ms each): at λ = 300, CG 0.39 s (110
+    iterations) against Cholesky 1.1 s, where the Jacobi model had chosen Cholesky; at λ = 1000
+    1.06 s (197) against 1.5 s; at λ = 3000, the model's break-even, 1.58 against 1.53 s.
     """
     if n < 2000:
         return "lu" if n_solves > 1 or kappa > 1e4 else "cg"
-    cg_cost = estimate_cg_iterations(kappa, rtol) * n_solves
-    factor_cost = 185.0 * np.sqrt(n / 126_000.0)
+    its = estimate_cg_iterations(kappa, rtol) * (0.5 if preconditioner == "sgs" else 1.0)
+    cg_cost = its * n_solves
+    factor_cost = (450.0 if preconditioner == "sgs" else 185.0) * np.sqrt(n / 126_000.0)
     if cholesky_available():
         if cg_cost > factor_cost + 3.0 * n_solves:
             return "cholesky"
         return "cg"
     # SuperLU (no cholespy) where CG is expected to run past its iteration cap (it would fall back anyway)
-    if estimate_cg_iterations(kappa, rtol) > cg_maxiter(n):
+    if its > cg_maxiter(n):
         return "lu"
     return "cg"
 
