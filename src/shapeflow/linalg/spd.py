@@ -16,7 +16,8 @@
     instead of 150 at λ = 100: the CG of a fresh step on Suzanne 126K
     triangulated 38 → 24 ms on one thread, 2026-11-24); its sweeps are
     sequential and run in the order of the unknowns, so numbering the vertices
-    differently changes a result within the tolerance, not to the last bit.  ``"auto"`` (default) takes ``"sgs"`` where the compiled
+    differently changes a result within the tolerance, not to the last bit.
+    ``"auto"`` (default) takes ``"sgs"`` where the compiled
     kernels run on a CSR matrix with a positive diagonal, ``"jacobi"``
     elsewhere: with SciPy alone a triangular solve costs ~7 products
     (``spsolve_triangular``), so the NumPy path keeps Jacobi, and the lean
