@@ -144,3 +144,15 @@ def test_refusals():
     Z = Z.tocsr()
     with pytest.raises(ParameterError, match="positive diagonal"):
         SPDSolver(Z, "cg", preconditioner="sgs").solve(B.copy(), X0)
+
+
+@needs_kernels
+def test_diagonal_positions_given_or_found_alike():
+    """The operator pattern's diagonal positions spare the pass that finds them: same bits."""
+    A, B, X0 = system(MESHES["quads"](), 2.0)
+    rows = np.repeat(np.arange(A.shape[0]), np.diff(A.indptr))
+    pos = np.flatnonzero(A.indices == rows)
+    found, _ = solve(A, B, X0, kernels="force", preconditioner="sgs")
+    given, st = solve(A, B, X0, kernels="force", preconditioner="sgs", diagonal_positions=pos)
+    assert st.preconditioner == "sgs"
+    assert np.array_equal(found, given)

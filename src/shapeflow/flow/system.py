@@ -262,7 +262,10 @@ class SystemBuilder:
         if A is None:   # the lean layout serves CG; a direct solver needs the entries
             A = PairMatrix(pattern.pairs, operator.pw, free, diag) if method == "cg" else \
                 self._matrix(operator, free, c, fast, False)[0]
-        return LinearSystem(A, free, SPDSolver(A, method, rtol=self.rtol, diagonal=diag), coupling, c)
+        # A has the pattern's layout (sorted columns, one diagonal entry a row) unless it is a PairMatrix
+        pos = pattern.pos_diag if isinstance(A, sp.csr_matrix) and pattern.csr_built else None
+        return LinearSystem(A, free, SPDSolver(A, method, rtol=self.rtol, diagonal=diag, diagonal_positions=pos),
+                            coupling, c)
 
     @staticmethod
     def _matrix(operator: Operator, free: np.ndarray, c: np.ndarray, fast, lean: bool):

@@ -137,11 +137,14 @@ class SPDSolver:
     already has it, saves extracting A's diagonal for the
     preconditioner (it must equal ``A.diagonal()``).  ``preconditioner``: one of
     :data:`PRECONDITIONERS` (CG only; None: :data:`DEFAULT_PRECONDITIONER`).
+    ``diagonal_positions``: where each row's diagonal entry is stored in ``A.indices``, for a CSR
+    matrix whose columns are sorted in every row with exactly one diagonal entry (the operator
+    pattern's ``pos_diag``); it saves the Gauss–Seidel sweeps a pass over A to find them.
     """
 
     def __init__(self, A: sp.csr_matrix | PairMatrix, method: str = "cg", *, rtol: float = DEFAULT_RTOL,
                  maxiter: int | None = None, diagonal: np.ndarray | None = None,
-                 preconditioner: str | None = None):
+                 preconditioner: str | None = None, diagonal_positions: np.ndarray | None = None):
         if method not in METHODS or method == "auto":
             raise ParameterError(f"unknown solver {method!r}; choose one of {', '.join(METHODS)}")
         if preconditioner is None:
@@ -159,6 +162,9 @@ class SPDSolver:
         self.stats = SolveStats(method)
         self._factor = None
         self._splits = None
+        if diagonal_positions is not None:
+            pos = np.asarray(diagonal_positions, dtype=np.int64)
+            self._splits = (pos, pos + 1)
         d = A.diagonal() if diagonal is None else np.asarray(diagonal, dtype=np.float64)
         self._positive = bool(d.size and d.min() > 0)
         self._d = d
