@@ -257,7 +257,7 @@ def main(argv=None) -> int:
         t, o = median_time(lambda: sf.flow(warm, lam), R)
         row(f"flow λ={lam:g}, 1 iteration, warm", t, f"[{o.report.solver}, CG {o.report.cg_iterations}]")
     for solver in ("cg", "cholesky", "lu"):
-        if solver == "cholesky" and not sf.solvers.cholesky_available():
+        if solver == "cholesky" and not sf.linalg.cholesky_available():
             continue
         for lam in (1.0, -100.0):
             t, o = median_time(lambda: sf.flow(warm, lam, solver=solver), max(1, R // 2) if solver != "cg" else R)
