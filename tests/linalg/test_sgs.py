@@ -156,3 +156,20 @@ def test_diagonal_positions_given_or_found_alike():
     given, st = solve(A, B, X0, kernels="force", preconditioner="sgs", diagonal_positions=pos)
     assert st.preconditioner == "sgs"
     assert np.array_equal(found, given)
+
+
+@needs_kernels
+def test_the_flow_report_names_the_preconditioner():
+    m = cube_sphere(12)
+    with accel.use(kernels="force"):
+        fast = sf.flow(m, 2.0, solver="cg")
+    with accel.use(kernels="off"):
+        slow = sf.flow(m, 2.0, solver="cg")
+    direct = sf.flow(m, 2.0, solver="lu")
+    assert (fast.report.preconditioner, slow.report.preconditioner, direct.report.preconditioner) == \
+        ("sgs", "jacobi", "")
+    assert "(sgs)" in fast.report.summary() and "(jacobi)" in slow.report.summary()
+    assert fast.report.cg_iterations[0] < slow.report.cg_iterations[0]
+    disp = np.abs(direct.vertices - m.vertices).max()
+    for r in (fast, slow):
+        assert np.abs(r.vertices - direct.vertices).max() <= 1e-7 * disp

@@ -21,6 +21,7 @@ class FlowReport:
     update: str
     solver: str = "none"
     cg_iterations: list = field(default_factory=list)
+    preconditioner: str = ""  # of the interior CG: "sgs" (symmetric Gauss–Seidel) or "jacobi"; "" without CG
     locked: int = 0
     locked_vertices: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     degenerate_triangles: int = 0
@@ -34,7 +35,8 @@ class FlowReport:
 
     def summary(self) -> str:
         """One line: time, max displacement, locked vertices, solver."""
-        its = f", CG iterations {self.cg_iterations}" if self.cg_iterations else ""
+        pre = f" ({self.preconditioner})" if self.preconditioner else ""
+        its = f", CG iterations {self.cg_iterations}{pre}" if self.cg_iterations else ""
         notes = f"; {'; '.join(self.notes)}" if self.notes else ""
         return (f"{self.seconds:.3f} s, max displacement {self.max_displacement:.6g}, "
                 f"{self.locked} locked vertices, solver {self.solver}{its}{notes}")

@@ -110,6 +110,7 @@ class FlowSolver:
             Xi = interior_sys.solver.solve(rhs, X, overwrite_b=True)   # rhs is ours: the CG's residual
             if interior_sys.solver.method == "cg" or interior_sys.solver.stats.fallback:
                 report.cg_iterations.append(interior_sys.solver.stats.iterations)
+                report.preconditioner = interior_sys.solver.stats.preconditioner
             Xi[held] = X[held]                 # exactly, not to the solver's tolerance
             if abs(lam) >= MEAN_RESTORE_FROM:
                 interior_sys.restore_means(Xi, V)
