@@ -204,7 +204,7 @@ def compiled(consumer: str, size: int, *, min_size: int | None = None):
     return mod
 
 
-def sequential(kernel, **options):
+def sequential(kernel):
     """The sequential twin of a compiled parallel kernel: the same Python function compiled without
     ``parallel`` (its ``prange`` loops run as ``range``), cached on disk under its own name.
 
@@ -225,7 +225,7 @@ def sequential(kernel, **options):
     twin.__qualname__ = f.__qualname__ + "_sequential"
     twin.__module__ = f.__module__
     twin.__doc__ = f.__doc__
-    return numba.njit(cache=True, **options)(twin)
+    return numba.njit(cache=True)(twin)
 
 
 def zeros(shape, dtype=None):

@@ -209,13 +209,16 @@ class SystemBuilder:
             return self._op0
         return build_operator(self.mesh, V, self.scheme, self.blender, self.normalized)
 
-    def method(self, n_free: int, kappa: float, n_solves: int) -> str:
+    def method(self, n_free: int, kappa: float, n_solves: int, *, n_rows: int | None = None,
+               lean: bool = False) -> str:
+        """The back end for a system of ``n_free`` unknowns (``n_rows`` rows, the lean layout or
+        not: what decides the CG's preconditioner, as :class:`SPDSolver` will)."""
         if self.solver_method == "chebyshev":
             return "cg"   # single steps; several fixed steps go through _fixed_steps
         if self.solver_method != "auto":
             return self.solver_method
         # the compiled CG on the CSR system preconditions with symmetric Gauss–Seidel (SPDSolver)
-        sgs = (accel.compiled("linalg", n_free) is not None and n_free < LEAN_FROM
+        sgs = (not lean and accel.compiled("linalg", n_free if n_rows is None else n_rows) is not None
                and spd.DEFAULT_PRECONDITIONER != "jacobi")
         return choose_method(n_free, kappa, n_solves, self.rtol, "sgs" if sgs else "jacobi")
 
@@ -245,7 +248,8 @@ class SystemBuilder:
         pattern = operator.pattern
         p0, p1 = pattern.pairs[:, 0], pattern.pairs[:, 1]
         fast = accel.compiled("flow", pattern.n)
-        A, diag, mixed, ratio = self._matrix(operator, free, c, fast, lean and fast is not None)
+        lean = lean and fast is not None      # the lean layout needs the compiled kernels
+        A, diag, mixed, ratio = self._matrix(operator, free, c, fast, lean)
         n_mixed = sum(mixed) if mixed is not None else -1   # -1: the NumPy path lists the couplings itself
         # terms of free rows on non-free columns move to the right-hand side
         if n_mixed and fast is not None:
@@ -258,7 +262,8 @@ class SystemBuilder:
         else:
             coupling = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
         kappa = 1.0 + 2.0 * ratio
-        method = "lu" if (self.blender and indefinite.any()) else self.method(int(free.sum()), kappa, n_solves)
+        method = "lu" if (self.blender and indefinite.any()) else \
+            self.method(int(free.sum()), kappa, n_solves, n_rows=pattern.n, lean=lean)
         if A is None:   # the lean layout serves CG; a direct solver needs the entries
             A = PairMatrix(pattern.pairs, operator.pw, free, diag) if method == "cg" else \
                 self._matrix(operator, free, c, fast, False)[0]

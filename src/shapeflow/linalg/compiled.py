@@ -14,12 +14,12 @@ from ..accel import sequential, zeros
 
 
 @njit(inline="always")
-def _row_times3(indptr, indices, data, B, i):
-    """Row i of A times the three columns of B (A in CSR)."""
+def _entries_times3(q0, q1, indices, data, B):
+    """The CSR entries q0 … q1 − 1 of a row of A times the three columns of B."""
     a0 = 0.0
     a1 = 0.0
     a2 = 0.0
-    for q in range(indptr[i], indptr[i + 1]):
+    for q in range(q0, q1):
         j = np.uint64(indices[q])   # unsigned: no negative-index wraparound test per access
         v = data[q]
         a0 += v * B[j, 0]
@@ -79,15 +79,7 @@ def _spmm_dot(indptr, indices, data, P, AP, nt):
         q0 = indptr[i0] if i0 < i1 else 0
         for i in range(i0, i1):
             q1 = indptr[i + 1]
-            a0 = 0.0
-            a1 = 0.0
-            a2 = 0.0
-            for q in range(q0, q1):
-                j = np.uint64(indices[q])   # unsigned: no negative-index wraparound test per access
-                v = data[q]
-                a0 += v * P[j, 0]
-                a1 += v * P[j, 1]
-                a2 += v * P[j, 2]
+            a0, a1, a2 = _entries_times3(q0, q1, indices, data, P)
             q0 = q1
             AP[i, 0] = a0
             AP[i, 1] = a1
@@ -270,7 +262,7 @@ def clenshaw_step(indptr, indices, data, cinv, B1, B2, X0, H0, f, alpha, beta, c
     """One step of ``solvers.chebyshev_steps``: B2 <- f·Ã B1 − B2 + cu X0 + ch H0 (in place), fused."""
     n = indptr.size - 1
     for i in prange(n):
-        a0, a1, a2 = _row_times3(indptr, indices, data, B1, i)
+        a0, a1, a2 = _entries_times3(indptr[i], indptr[i + 1], indices, data, B1)
         ci = cinv[i] * alpha
         B2[i, 0] = f * (ci * a0 - beta * B1[i, 0]) - B2[i, 0] + cu * X0[i, 0] + ch * H0[i, 0]
         B2[i, 1] = f * (ci * a1 - beta * B1[i, 1]) - B2[i, 1] + cu * X0[i, 1] + ch * H0[i, 1]

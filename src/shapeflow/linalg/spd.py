@@ -346,15 +346,13 @@ class SPDSolver:
             its = fast.pcg3_pairs(A.pairs, A.weights, A.free, A.d, self._minv, B3, X, self.rtol, maxiter,
                                   overwrite_b=reused)
         else:
-            data = np.ascontiguousarray(A.data, dtype=np.float64)
-            if self.preconditioner != "jacobi" and self._positive:
-                if self._splits is None:
+            if self.preconditioner != "jacobi" and self._positive and self._splits is None:
+                self._splits = fast.row_splits(A.indptr, A.indices)
+                if self._splits is None and self.preconditioner == "sgs":   # unsorted columns: a sorted copy
+                    self.A = A = A.sorted_indices()
                     self._splits = fast.row_splits(A.indptr, A.indices)
-                    if self._splits is None and self.preconditioner == "sgs":   # unsorted columns
-                        self.A = A = A.sorted_indices()
-                        data = A.data
-                        self._splits = fast.row_splits(A.indptr, A.indices)
-                sgs = self._splits is not None
+            sgs = self.preconditioner != "jacobi" and self._positive and self._splits is not None
+            data = np.ascontiguousarray(A.data, dtype=np.float64)
             if sgs:
                 its = fast.sgs_pcg3(A.indptr, A.indices, data, self._splits, self._d, B3, X, self.rtol, maxiter,
                                     overwrite_b=reused)
