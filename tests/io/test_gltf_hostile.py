@@ -235,6 +235,8 @@ def test_an_accessor_without_buffer_view_is_bounded_by_memory():
     d.j["accessors"][0].pop("bufferView")
     d.j["accessors"][0]["count"] = 10 ** 13
     refused(d.gltf(), r"accessor 0 \(POSITION: 10000000000000 VEC3 without a bufferView\) needs about .* of memory")
+    d.j["accessors"][0]["count"] = 10 ** 400
+    refused(d.gltf(), r"accessor 0 \(POSITION: 1000.* VEC3 without a bufferView\) needs about .* of memory")
     d.j["accessors"][0]["count"] = 8                             # small: zeros, as the spec says
     np.testing.assert_array_equal(read_gltf(d.gltf(), "z.gltf").vertices, np.zeros((8, 3)))
 
@@ -328,6 +330,7 @@ def test_a_deep_tree_is_walked_once_per_node():
     ([{"children": [5]}], [0], "children is not a list of node indices below 1"),
     ([{"mesh": 3}], [0], "node 0: mesh 3"),
     ([{"matrix": [1] * 15}], [0], "node 0: matrix is not 16 finite numbers"),
+    ([{"translation": [10 ** 400, 0, 0], "mesh": 0}], [0], "node 0: translation is not 3 finite numbers"),
     ([{"translation": [1e308, 0, 0], "children": [1]}, {"translation": [1e308, 0, 0], "mesh": 0}], [0],
      "node 1: its world transform overflows"),
 ])

@@ -158,7 +158,7 @@ def accessor(doc: dict, buffers: list, i, name: str, role: str, *, budget: bool 
     span = _dense_span(doc, buffers, acc, i, name, role, elem, itemsize, count)
     sparse = _sparse(doc, buffers, acc, i, name, role, elem, count)
     if span is None and budget:
-        room(name, f"accessor {i} ({role}: {count} {acc['type']} without a bufferView)", 8.0 * count * width * 4)
+        room(name, f"accessor {i} ({role}: {count} {acc['type']} without a bufferView)", 32 * count * width)
     return Accessor(i, dtype, width, count, norm, span, sparse)
 
 

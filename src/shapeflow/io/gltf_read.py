@@ -15,6 +15,7 @@ from .gltf_source import (
     check_extensions,
     check_images,
     field_int,
+    is_int,
     items,
     load_buffers,
     parse_container,
@@ -55,9 +56,12 @@ class _Reader:
     def __init__(self, doc: dict, buffers: list, name: str):
         self.doc, self.buffers, self.name = doc, buffers, name
         self.cache: dict = {}
+        self.checks: dict = {}
 
     def checked(self, i, role: str):
-        return accessor(self.doc, self.buffers, i, self.name, role)
+        if not is_int(i) or (i, role) not in self.checks:      # a non-integer is refused by accessor()
+            self.checks[i, role] = accessor(self.doc, self.buffers, i, self.name, role)
+        return self.checks[i, role]
 
     def values(self, i, role: str) -> np.ndarray:
         key = (i, role)

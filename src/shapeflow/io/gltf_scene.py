@@ -22,8 +22,12 @@ def _numbers(node: dict, key: str, n: int, i: int, name: str):
     v = node.get(key)
     if v is None:
         return None
-    if (not isinstance(v, list) or len(v) != n
-            or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v)):
+    try:
+        ok = (isinstance(v, list) and len(v) == n
+              and all(isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x) for x in v))
+    except OverflowError:          # an integer beyond double precision
+        ok = False
+    if not ok:
         raise MeshError(f"{name}: node {i}: {key} is not {n} finite numbers")
     return np.asarray(v, np.float64)
 

@@ -86,7 +86,7 @@ def entry(doc: dict, key: str, index, name: str, what: str) -> dict:
 def room(name: str, what: str, need: float) -> None:
     """Refuse (MeshError with the estimate) what cannot fit in the memory available."""
     try:
-        check_memory(what, need, parameter=name)
+        check_memory(what, float(min(need, 10 ** 30)), parameter=name)
     except ParameterError as exc:
         raise MeshError(str(exc)) from None
 

@@ -201,6 +201,8 @@ def _bounds(doc: dict, blobs: list, i: int, role: str, name: str) -> None:
     if role != "POSITION" and "min" not in acc and "max" not in acc:
         return
     raw = read_raw(blobs, accessor(doc, blobs, i, name, role), name)
+    if not np.isfinite(raw).all():     # elements no primitive uses may hold anything: bounds left as they were
+        return
     cast = float if raw.dtype.kind == "f" else int
     acc["min"] = [cast(x) for x in raw.min(axis=0)]
     acc["max"] = [cast(x) for x in raw.max(axis=0)]
@@ -211,6 +213,7 @@ def write_back(meta: dict, mesh: Mesh) -> tuple[dict, list]:
     doc = copy.deepcopy(meta["document"])
     blobs = [bytearray(b) for b in meta["buffers"]]
     name = meta.get("source", "the glTF input")
+    items(doc, "bufferViews", name)         # a list (or absent): new bufferViews may be added
     wanted = {a: (role, *_combine(a, role, parts)) for a, (role, parts) in _contributions(meta, mesh).items()}
     written = {a: accessor(doc, blobs, a, name, role, budget=False) for a, (role, _, _) in wanted.items()}
     # every value first (reading before any byte changes), then the writes
