@@ -281,3 +281,15 @@ def test_the_smoothing_command_writes_a_quantized_file_back(tmp_path, capsys):
     g, blobs = load(tmp_path / "out.glb")
     raw = decode(g, blobs, 0)
     assert g.accessors[0].componentType == 5122 and np.abs(raw).max() < 0.5 * 32767   # smoothing shrinks
+
+
+def test_a_deeply_nested_document_is_written_back(tmp_path):
+    """extras nested 900 deep (JSON's own limit is near 1,000): written and read again."""
+    d = cube_doc()
+    d.j["extras"] = {"nest": "NEST"}
+    text = d.gltf().replace(b'"NEST"', b"[" * 900 + b"]" * 900)
+    (tmp_path / "deep.gltf").write_bytes(text)
+    m = sf.load(tmp_path / "deep.gltf")
+    save_quietly(tmp_path / "out.gltf", m.with_vertices(m.vertices * 0.5))
+    g, blobs = load(tmp_path / "out.gltf")
+    np.testing.assert_array_equal(decode(g, blobs, 0), (cube()[0] * 0.5).astype("<f4"))

@@ -148,6 +148,13 @@ def _collect(r: _Reader, plan: list, blocks: dict) -> dict:
 def read_gltf(data: bytes, name: str, *, external_files: bool = True) -> Mesh:
     """A glTF / GLB file's triangle meshes as one mesh; ``external_files=False`` refuses every URI
     that is not ``data:`` (a file read on its own, e.g. uploaded)."""
+    try:
+        return _read(data, name, external_files)
+    except MemoryError:     # past the up-front estimates (another process took the memory meanwhile)
+        raise MeshError(f"{name}: the glTF file does not fit in the memory available") from None
+
+
+def _read(data: bytes, name: str, external_files: bool) -> Mesh:
     doc, binary = parse_container(data, name)
     check_extensions(doc, name)
     folder = source_folder(name) if external_files else None

@@ -20,7 +20,6 @@
 from __future__ import annotations
 
 import base64
-import copy
 import json
 import struct
 import warnings
@@ -208,9 +207,19 @@ def _bounds(doc: dict, blobs: list, i: int, role: str, name: str) -> None:
     acc["max"] = [cast(x) for x in raw.max(axis=0)]
 
 
+def _copy(doc: dict) -> dict:
+    """A copy of what writing changes (accessors, bufferViews, buffers, images; one level deep);
+    the rest, however deeply nested, is shared with the read document."""
+    out = dict(doc)
+    for key in ("accessors", "bufferViews", "buffers", "images"):
+        if isinstance(doc.get(key), list):
+            out[key] = [dict(x) if isinstance(x, dict) else x for x in doc[key]]
+    return out
+
+
 def write_back(meta: dict, mesh: Mesh) -> tuple[dict, list]:
     """The input document and buffers with ``mesh``'s positions and normals (see the module)."""
-    doc = copy.deepcopy(meta["document"])
+    doc = _copy(meta["document"])
     blobs = [bytearray(b) for b in meta["buffers"]]
     name = meta.get("source", "the glTF input")
     items(doc, "bufferViews", name)         # a list (or absent): new bufferViews may be added
@@ -265,7 +274,10 @@ def pack(doc: dict, blobs: list, binary: bool) -> bytes:
             buf.pop("uri", None)
         else:
             buf["uri"] = "data:application/octet-stream;base64," + base64.b64encode(bytes(blobs[i])).decode("ascii")
-    text = json.dumps(doc, separators=(",", ":"), ensure_ascii=False, allow_nan=False).encode("utf-8")
+    try:
+        text = json.dumps(doc, separators=(",", ":"), ensure_ascii=False, allow_nan=False).encode("utf-8")
+    except RecursionError:
+        raise MeshError("the glTF document is nested too deeply to be written") from None
     if not binary:
         return text
     text += b" " * (-len(text) % 4)
