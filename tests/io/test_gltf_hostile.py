@@ -394,6 +394,9 @@ def test_quantized_attributes_are_read_as_the_spec_maps_them():
         np.testing.assert_allclose(corner_n, raw / np.linalg.norm(raw, axis=1, keepdims=True), rtol=1e-12)
         np.testing.assert_allclose(sf.mesh.attributes.expand(m.corner_attributes["uv"]),
                                    (uv / 65535.0)[m.face_indices], rtol=1e-15)
+    plain = quantized_doc()[0]
+    plain.j["accessors"][0].pop("normalized")                          # unnormalized int16: integer values
+    np.testing.assert_array_equal(read_gltf(plain.gltf(), "q16.gltf").vertices, q * 2.0)
     int8 = quantized_doc()[0]
     int8.j["accessors"][0].update(componentType=5120)                 # the same bytes read as int8: allowed
     assert read_gltf(int8.gltf(), "q8.gltf").n_vertices == 8

@@ -197,7 +197,8 @@ def read_file(path: str, uri: str, name: str, what: str, length: int | None = No
         with os.fdopen(fd, "rb") as f:
             st = os.fstat(f.fileno())
             if not stat.S_ISREG(st.st_mode):
-                raise MeshError(f"{name}: {what} {shown(uri)} is not a regular file (a device, FIFO or socket)")
+                raise MeshError(f"{name}: {what} {shown(uri)} is not a regular file "
+                                "(a directory, device, FIFO or socket)")
             size = st.st_size if length is None else length
             if st.st_size < size:
                 raise MeshError(f"{name}: {what} {shown(uri)} holds {st.st_size} bytes; {size} are declared")
@@ -265,7 +266,8 @@ def check_images(doc: dict, folder: str | None, name: str) -> None:
             except OSError:
                 continue            # a missing texture: the mesh reads; writing names it
             if not stat.S_ISREG(mode):
-                raise MeshError(f"{name}: image {k} {shown(uri)} is not a regular file (a device, FIFO or socket)")
+                raise MeshError(f"{name}: image {k} {shown(uri)} is not a regular file "
+                                "(a directory, device, FIFO or socket)")
 
 
 def load_image(uri: str, folder: str | None, name: str, what: str) -> bytes:
