@@ -64,7 +64,7 @@ def test_round_trip_and_flow_keep_everything(tmp_path, quad_tri):
         assert back.face_attributes[k].dtype == quad_tri.face_attributes[k].dtype
         np.testing.assert_array_equal(back.face_attributes[k], quad_tri.face_attributes[k])
     np.testing.assert_allclose(back.corner_attributes["uv"], quad_tri.corner_attributes["uv"], rtol=1e-7)
-    assert back.metadata["ply"] == {"comment": ["scanned 2026"], "obj_info": ["units mm"]}
+    assert back.metadata["ply"]["comment"] == ["scanned 2026"] and back.metadata["ply"]["obj_info"] == ["units mm"]
 
 
 def test_what_ply_cannot_hold_is_named(tmp_path, quad_tri):

@@ -76,10 +76,10 @@ def test_round_trip_keeps_facets_and_attribute_words(tmp_path):
 
 @pytest.mark.parametrize("text,match", [
     (b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nendloop\nendfacet\nendsolid x\n",
-     "facet has 2 vertices"),
+     "line 6: expected 'vertex' here, found 'endloop'"),
     (b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 zz\nvertex 0 1 0\nendloop\n"
-     b"endfacet\nendsolid\n", "vertex coordinate"),
-    (b"hello", "not an STL file"),
+     b"endfacet\nendsolid\n", "line 5: 'zz' is not a valid vertex coordinate"),
+    (b"hello", "not an STL file: neither text beginning with 'solid' nor binary STL \\(5 bytes"),
 ])
 def test_bad_files_name_the_problem(tmp_path, text, match):
     p = tmp_path / "bad.stl"
@@ -106,3 +106,115 @@ def test_an_stl_soup_smooths_as_one_surface(tmp_path, capsys):
     np.testing.assert_allclose(out.vertices, ref, rtol=0, atol=1e-6 * m.diagonal)   # float32 on writing
     copies = stored.vertices[:, None] == stored.vertices[None, :20]
     assert copies.all(axis=2).sum() > 20           # the soup really has copies
+
+
+# --- which variant, and files that do not hold what they declare -------------------------------------
+
+def binary_stl(n: int, header: bytes = b"binary", count: int | None = None, seed: int = 0) -> tuple[bytes, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    vectors = rng.random((n, 3, 3)).astype(np.float32)
+    rec = np.zeros(n, dtype=stl_mesh.Mesh.dtype)       # numpy-stl's own record layout
+    rec["vectors"] = vectors
+    body = header.ljust(80, b" ") + np.uint32(n if count is None else count).tobytes() + rec.tobytes()
+    return body, vectors
+
+
+def numpy_stl_reads(path):
+    """numpy-stl's reading of a file (None if it refuses it)."""
+    try:
+        return stl_mesh.Mesh.from_file(str(path), calculate_normals=False).vectors.astype(np.float64)
+    except Exception:
+        return None
+
+
+@pytest.mark.parametrize("header", [b"solid part exported by CAD", b"SOLID", b"  solid x"])
+def test_a_binary_file_whose_header_says_solid_is_binary(tmp_path, header):
+    data, vectors = binary_stl(7, header)
+    p = tmp_path / "b.stl"
+    p.write_bytes(data)
+    got = sf.load(p).vertices.reshape(-1, 3, 3)
+    np.testing.assert_array_equal(got, vectors.astype(np.float64))
+    np.testing.assert_array_equal(got, numpy_stl_reads(p))
+
+
+@pytest.mark.parametrize("header", [b"binary", b"solid name"])
+@pytest.mark.parametrize("cut", [1, 20, 49, 50, 120])
+def test_a_truncated_binary_file_is_refused_with_its_sizes(tmp_path, header, cut):
+    data, vectors = binary_stl(4, header)
+    p = tmp_path / "t.stl"
+    p.write_bytes(data[:-cut])
+    with pytest.raises(sf.MeshError, match=rf"t\.stl: binary STL is truncated: its header declares 4 facets "
+                                           rf"\(84 \+ 50 × 4 = 284 bytes\) but the file has {284 - cut} bytes"):
+        sf.load(p)
+    theirs = numpy_stl_reads(p)       # numpy-stl drops the incomplete facets silently (or refuses): never us
+    assert theirs is None or theirs.shape[0] < 4
+
+
+@pytest.mark.parametrize("header", [b"binary", b"solid name"])
+@pytest.mark.parametrize("extra", [1, 30, 50, 77])
+def test_a_padded_binary_file_is_read_as_numpy_stl_reads_it(tmp_path, header, extra):
+    data, vectors = binary_stl(4, header)
+    p = tmp_path / "pad.stl"
+    p.write_bytes(data + b"\0" * extra)
+    with pytest.warns(DataLossWarning, match=rf"pad\.stl: {extra} bytes after the 4 facets .* are ignored"):
+        got = sf.load(p).vertices.reshape(-1, 3, 3)
+    np.testing.assert_array_equal(got, vectors.astype(np.float64))
+    theirs = numpy_stl_reads(p)
+    if header == b"binary":           # numpy-stl reads the declared facets too
+        np.testing.assert_array_equal(got, theirs)
+
+
+@pytest.mark.parametrize("data,match", [
+    (b"solid empty\nendsolid empty\n", "line 1: ASCII STL with no facets"),
+    (b"solid\n", "line 1: file ends without 'endsolid'"),
+    (b"\xef\xbb\xbf  solid x\n\n endsolid x", "ASCII STL with no facets"),
+    (b"binary header".ljust(80) + b"\0\0\0\0", "binary STL with no facets"),
+    (b"", "not an STL file"),
+    (b"solid" + b"\0" * 60, "not an STL file"),
+], ids=["ascii-empty", "ascii-no-end", "bom-empty", "binary-zero", "empty-file", "short-binary"])
+def test_no_facets_is_an_error_never_an_empty_mesh(tmp_path, data, match):
+    p = tmp_path / "e.stl"
+    p.write_bytes(data)
+    with pytest.raises(sf.MeshError, match=match):
+        sf.load(p)
+
+
+FACET = "facet normal 0 0 1\n outer loop\n  vertex 0 0 0\n  vertex 1 0 0\n  vertex 0 1 0\n endloop\nendfacet\n"
+
+
+@pytest.mark.parametrize("lines,match", [
+    ({4: "  vertex 1 0"}, "line 4: malformed 'vertex' line: expected 'vertex' and three numbers"),
+    ({4: "  vertex 1 0 0 7"}, "line 4: malformed 'vertex' line"),
+    ({2: "facet normal 0 0"}, "line 2: malformed 'facet' line: expected 'facet normal' and three numbers"),
+    ({2: "facet nromal 0 0 1"}, "line 2: malformed 'facet' line"),
+    ({3: " outer lop"}, "line 3: malformed 'outer' line: expected 'outer loop'"),
+    ({5: "  vertx 1 0 0"}, "line 5: 'vertx' is not an ASCII STL keyword"),
+    ({6: "  vertex 0 1 0\n  vertex 0 1 1"}, "line 7: expected 'endloop' here, found 'vertex'"),
+    ({7: " endloop\nendsolid x"}, "line 8: 'endsolid' inside a facet"),
+    ({5: "  vertex 0 nan 0"}, "line 5: vertex coordinate is not finite"),
+    ({5: "  vertex 0 1e999 0"}, "line 5: vertex coordinate is not finite"),
+    ({5: "  vertex 0 0x1 0"}, "line 5: '0x1' is not a valid vertex coordinate"),
+    ({9: "endsolid x\nsolid y\nsolid z"}, "line 11: 'solid' without its endsolid"),
+    ({9: ""}, "file ends without 'endsolid'"),
+    ({1: "facet normal 0 0 1"}, "not an STL file: neither text beginning with 'solid' nor binary STL "
+                                r"\(as binary its header's \d+ facets need \d+ bytes, it has 124\)"),
+    ({1: "solidworks"}, "line 1: 'solidworks' is not an ASCII STL keyword"),
+], ids=lambda v: "" if isinstance(v, str) else next(iter(v.values()))[:16])
+def test_a_malformed_ascii_line_is_named(tmp_path, lines, match):
+    text = ("solid x\n" + FACET + "endsolid x\n").split("\n")
+    for k, v in lines.items():
+        text[k - 1] = v
+    p = tmp_path / "a.stl"
+    p.write_text("\n".join(text))
+    with pytest.raises(sf.MeshError, match=match):
+        sf.load(p)
+
+
+def test_ascii_keywords_in_capitals_and_several_solids(tmp_path):
+    text = ("SOLID part\n" + FACET.upper() + "ENDSOLID part\nsolid second\n" + FACET.replace("0 1 0", "0 2 0")
+            + "endsolid second\n")
+    p = tmp_path / "caps.stl"
+    p.write_text(text)
+    m = sf.load(p)
+    assert m.n_faces == 2 and m.metadata["stl"]["name"] == "part"
+    np.testing.assert_array_equal(m.vertices[[2, 5]], [[0, 1, 0], [0, 2, 0]])

@@ -81,10 +81,10 @@ from .stl import read_stl, write_stl
 from .weights import WEIGHT_EXTENSIONS, load_weights, save_weights
 
 
-def _read_gltf(data, name):   # pygltflib is imported on first use
+def _read_gltf(data, name, *, external_files=True):   # pygltflib is imported on first use
     from .gltf import read_gltf
 
-    return read_gltf(data, name)
+    return read_gltf(data, name, external_files=external_files)
 
 
 def _write_gltf(f, mesh, *, binary=None):
@@ -99,10 +99,10 @@ def _write_glb(f, mesh, *, binary=None):
     write_glb(f, mesh, binary=binary)
 
 
-def _read_usd(data, name):   # usd-core is imported on first use
+def _read_usd(data, name, *, external_files=True):   # usd-core is imported on first use
     from .usd import read_usd
 
-    return read_usd(data, name)
+    return read_usd(data, name, external_files=external_files)
 
 
 def _write_usda(f, mesh, *, binary=None):
@@ -127,7 +127,8 @@ register_format(MeshFormat("OBJ", (".obj",), read_obj, write_obj))
 register_format(MeshFormat("OFF", (".off",), read_off, write_off))
 register_format(MeshFormat("PLY", (".ply",), read_ply, write_ply, attributes=True, binary=True))
 register_format(MeshFormat("STL", (".stl",), read_stl, write_stl, binary=True))
-register_format(MeshFormat("glTF", (".gltf",), _read_gltf, _write_gltf, attributes=True, binary=True))
-register_format(MeshFormat("GLB", (".glb",), _read_gltf, _write_glb, attributes=True, binary=True))
-register_format(MeshFormat("USDA", (".usda",), _read_usd, _write_usda, attributes=True, binary=True))
-register_format(MeshFormat("USD", (".usd", ".usdc"), _read_usd, _write_usdc, attributes=True, binary=True))
+register_format(MeshFormat("glTF", (".gltf",), _read_gltf, _write_gltf, attributes=True, binary=True, external=True))
+register_format(MeshFormat("GLB", (".glb",), _read_gltf, _write_glb, attributes=True, binary=True, external=True))
+register_format(MeshFormat("USDA", (".usda",), _read_usd, _write_usda, attributes=True, binary=True, external=True))
+register_format(MeshFormat("USD", (".usd", ".usdc"), _read_usd, _write_usdc, attributes=True, binary=True,
+                           external=True))

@@ -30,13 +30,16 @@ def os_error(name: str, exc: OSError) -> MeshError:
 def read_bytes(name: str) -> bytes:
     try:
         # /dev/zero, a FIFO...: no end to trust (and opening a FIFO waits for a writer): checked first
-        mode = os.stat(name).st_mode
+        st = os.stat(name)
+        mode = st.st_mode
         if not stat.S_ISREG(mode) and not stat.S_ISDIR(mode):   # a directory: open() names it below
             raise MeshError(f"{name}: not a regular file (a device, pipe or socket); give a file")
         with open(name, "rb") as f:
             return f.read()
     except OSError as exc:
         raise os_error(name, exc) from exc
+    except MemoryError as exc:
+        raise MeshError(f"{name}: the file does not fit in memory ({st.st_size:,} bytes)") from exc
 
 
 def umask() -> int:

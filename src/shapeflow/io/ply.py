@@ -327,45 +327,69 @@ def read_ply(data: bytes, name: str) -> Mesh:
     vel = next((el for el in elements if el.name == "vertex"), None)
     if vel is None:
         raise MeshError(f"{name}: PLY file has no 'vertex' element")
-    vertices, attributes = _vertex_data(vel, found["vertex"], name, vloc)
+    vertices, attributes, vlists = _vertex_data(vel, found["vertex"], name, vloc)
     fel = next((el for el in elements if el.name == "face"), None)
-    corner, face, lost = {}, {}, []
+    corner, face, flists = {}, {}, {}
     if fel is None:
         sizes, idx = np.zeros(0, np.int64), np.zeros(0, np.int64)
     else:
         sizes, idx = _face_data(fel, found["face"], vertices.shape[0], name, floc)
-        face, corner, lost = _face_extras(fel, found["face"], sizes, name)
-    lost += [f"element '{el.name}' ({el.count})" for el in elements if el.name not in ("vertex", "face")]
+        face, corner, flists = _face_extras(fel, found["face"], sizes, name, floc)
+    lost = [f"element '{el.name}' ({el.count})" for el in elements if el.name not in ("vertex", "face")]
     if lost:
         warnings.warn(DataLossWarning(f"{name}: not kept: {', '.join(lost)}"), stacklevel=3)
     meta = {key: [ln.split(None, 1)[1] if len(ln.split(None, 1)) > 1 else "" for ln in header.split("\n")
                   if ln.split(None, 1)[:1] == [key]] for key in ("comment", "obj_info")}
     meta["comment"] = [c for c in meta["comment"] if c != OWN_COMMENT]
-    keep = corner or face or meta["comment"] or meta["obj_info"]
+    # what writing it back needs: each property's type, in the file's order, and the list properties
+    # that are not the faces' corners or texture coordinates (valid while vertices and faces stay)
+    meta["types"] = {el.name: {p.name: (p.count_dtype.newbyteorder("=").str[1:], p.dtype.newbyteorder("=").str[1:])
+                               if p.is_list else p.dtype.newbyteorder("=").str[1:] for p in el.props}
+                     for el in (vel, fel) if el is not None}
+    if vlists or flists:
+        meta["lists"] = {"vertex": vlists, "face": flists}
+        meta["lists_of"] = (vertices.shape[0], idx)
     return build_mesh(name, vertices, sizes, idx, attributes=attributes, corner_attributes=corner,
-                      face_attributes=face, metadata={"ply": meta} if keep else None,
-                      where_vertex=vloc, where_face=floc)
+                      face_attributes=face, metadata={"ply": meta}, where_vertex=vloc, where_face=floc)
 
 
-def _face_extras(fel: _Element, vals: dict, sizes: np.ndarray, name: str):
+def _face_extras(fel: _Element, vals: dict, sizes: np.ndarray, name: str, floc):
     """Face properties besides the vertex list: scalars as face attributes (in their type), a
-    'texcoord' list of two values per corner as the corner attribute "uv"; what else (lists that
-    are neither) is named as lost."""
-    face, corner, lost = {}, {}, []
+    'texcoord' list of two values per corner as the corner attribute "uv", other lists as they are
+    ({name: (counts, items)}, kept for writing back)."""
+    face, corner, lists = {}, {}, {}
     vlist = next((p for p in fel.props if p.is_list and p.name in _FACE_LISTS), None) or \
         next((p for p in fel.props if p.is_list), None)
+    where = floc if floc is not None else (lambda f: f"face {f}")
     for p in fel.props:
         if p is vlist:
             continue
         if not p.is_list:
-            v = np.asarray(vals[p.name])
-            dt = p.dtype.newbyteorder("=")
-            face[p.name] = v if (dt.kind == "f" and v.dtype == np.float64) else v.astype(dt)
+            face[p.name] = _typed(vals[p.name], p, name, where, np.arange(len(vals[p.name])))
         elif p.name in ("texcoord", "texcoords") and np.array_equal(np.asarray(vals[p.name][0]), 2 * sizes):
             corner["uv"] = np.asarray(vals[p.name][1], dtype=np.float64).reshape(-1, 2)
         else:
-            lost.append(f"face list '{p.name}'")
-    return face, corner, lost
+            counts, items = vals[p.name]
+            counts = np.asarray(counts, np.int64)
+            owner = np.repeat(np.arange(counts.size), counts)
+            lists[p.name] = (counts, _typed(items, p, name, where, owner))
+    return face, corner, lists
+
+
+def _typed(v, p: _Prop, name: str, where, owner: np.ndarray) -> np.ndarray:
+    """Values in the property's declared type; ASCII numbers (parsed as float64) are checked to fit
+    an integer type (``owner[i]``: the element value i belongs to, for the message), and ASCII floats
+    keep the text's precision (float64)."""
+    v = np.asarray(v)
+    dt = p.dtype.newbyteorder("=")
+    if dt.kind in "iu" and v.dtype.kind == "f":
+        info = np.iinfo(dt)
+        bad = np.flatnonzero((v != np.rint(v)) | (v < info.min) | (v > info.max))
+        if bad.size:
+            i = int(bad[0])
+            raise MeshError(_at(name, where(int(owner[i])),
+                                f"property '{p.name}' is {np.dtype(dt).name} but has the value {float(v[i]):.17g}"))
+    return v if (dt.kind == "f" and v.dtype == np.float64) else v.astype(dt)
 
 
 def _read_ascii_body(data: bytes, start: int, elements: list[_Element], name: str):
@@ -405,29 +429,24 @@ def _read_binary_body(body: bytes, elements: list[_Element], name: str):
 
 
 def _vertex_data(vel: _Element, vals: dict, name: str, vloc):
-    """Positions and the other scalar properties (attributes keep the file's type: ASCII integers
-    are parsed as float64, checked, then cast back)."""
+    """Positions, the other scalar properties as attributes (in their types) and the list
+    properties ({name: (counts, items)})."""
     scal = {p.name: p for p in vel.props if not p.is_list}
     for axis in "xyz":
         if axis not in scal:
             raise MeshError(f"{name}: line {vel.line}: the vertex element has no scalar '{axis}' property")
     vertices = np.column_stack([np.asarray(vals[a], dtype=np.float64) for a in "xyz"])
-    attributes = {}
+    where = vloc if vloc is not None else (lambda i: f"vertex {i}")
+    attributes, lists = {}, {}
     for p in vel.props:
-        if p.is_list or p.name in ("x", "y", "z"):
+        if p.name in ("x", "y", "z"):
             continue
-        v = np.asarray(vals[p.name])
-        dt = p.dtype.newbyteorder("=")
-        if dt.kind in "iu" and v.dtype.kind == "f":
-            info = np.iinfo(dt)
-            bad = np.flatnonzero((v != np.rint(v)) | (v < info.min) | (v > info.max))
-            if bad.size:
-                i = int(bad[0])
-                raise MeshError(_at(name, vloc(i) if vloc else f"vertex {i}",
-                                    f"property '{p.name}' is {np.dtype(dt).name} but has the value {v[i]!r}"))
-        # ASCII floats keep the text's precision (parsed as float64); everything else its declared type
-        attributes[p.name] = v if (dt.kind == "f" and v.dtype == np.float64) else v.astype(dt)
-    return vertices, attributes
+        if p.is_list:
+            counts = np.asarray(vals[p.name][0], np.int64)
+            lists[p.name] = (counts, _typed(vals[p.name][1], p, name, where, np.repeat(np.arange(counts.size), counts)))
+        else:
+            attributes[p.name] = _typed(vals[p.name], p, name, where, np.arange(vertices.shape[0]))
+    return vertices, attributes, lists
 
 
 def _face_data(fel: _Element, vals: dict, nv: int, name: str, floc):

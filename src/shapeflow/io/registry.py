@@ -16,7 +16,7 @@ from .atomic import as_path, atomic_write, read_bytes
 __all__ = ["Reader", "Writer", "MeshFormat", "FORMATS", "register_format", "as_path", "format_for", "load", "save"]
 
 
-Reader = Callable[[bytes, str], Mesh]
+Reader = Callable[..., Mesh]  # reader(data, name[, external_files=...]) -> Mesh
 Writer = Callable[..., None]  # writer(f: BinaryIO, mesh: Mesh, *, binary: bool | None)
 
 
@@ -27,7 +27,9 @@ class MeshFormat:
     ``reader(data, name)`` turns the file's bytes into a :class:`Mesh` and
     raises :class:`MeshError` naming ``name``; ``writer(f, mesh, binary=...)``
     writes to a binary file object (``binary=None`` means the format's
-    default).
+    default).  A format whose files can refer to other files (glTF buffers
+    and images, USD sublayers, references and payloads) has ``external=True``
+    and its reader takes the keyword ``external_files`` (see :func:`load`).
     """
 
     name: str
@@ -36,6 +38,7 @@ class MeshFormat:
     writer: Writer
     attributes: bool = False  #: stores per-vertex attributes
     binary: bool = False  #: has a binary variant
+    external: bool = False  #: its files can refer to other files; the reader takes ``external_files=``
 
 
 #: extension (lower case, with the dot) -> format
@@ -71,24 +74,48 @@ def format_for(name: str, format: str | None) -> MeshFormat:
 # public API
 # --------------------------------------------------------------------------
 
-def load(path: PathLike, *, format: str | None = None) -> Mesh:
+def load(path: PathLike, *, format: str | None = None, external_files: bool = True) -> Mesh:
     """Read a mesh file (format from the extension, or ``format="ply"`` etc.).
+
+    ``external_files=False`` refuses a file that refers to any other file (a
+    glTF buffer or image given by URI, USD sublayers, references, payloads,
+    value clips and asset paths): for files from elsewhere (uploads).  With
+    ``True`` (the default) such files are read, and USD layers are composed
+    only from files inside the file's own folder.
 
     Raises
     ------
     MeshError
-        The file is missing, unreadable or malformed; the message names the
-        file and the line (text) or element (binary PLY).
+        The file is missing, unreadable, malformed, refers to files it may
+        not, or does not fit in memory; the message names the file and the
+        line (text) or element (binary PLY), and the exception that stopped
+        the reader, if any, is its ``__cause__``.
     """
+    external_files = params.flag("external_files", external_files)
     name = as_path(path)
     fmt = format_for(name, format)
     data = read_bytes(name)
     try:
+        if fmt.external:
+            return fmt.reader(data, name, external_files=external_files)
         return fmt.reader(data, name)
-    except MeshError:
+    except MeshError as exc:
+        if str(exc).startswith(name):
+            raise
+        raise MeshError(f"{name}: {exc}") from exc
+    except (ImportError, NameError, Warning):   # a missing extra, a bug, a warning turned into an error
         raise
-    except (ValueError, IndexError, TypeError, KeyError, OverflowError) as exc:  # safety net
-        raise MeshError(f"{name}: malformed {fmt.name} file ({type(exc).__name__}: {exc})") from exc
+    except MemoryError as exc:
+        raise MeshError(f"{name}: the {fmt.name} file does not fit in memory ({len(data):,} bytes)") from exc
+    except RecursionError as exc:
+        raise MeshError(f"{name}: the {fmt.name} file is nested too deeply to read") from exc
+    except OSError as exc:
+        raise MeshError(f"{name}: a file the {fmt.name} file refers to cannot be read: "
+                        f"{exc.strerror or exc} ({type(exc).__name__})") from exc
+    except Exception as exc:  # safety net: whatever a reader or its library raised on this file
+        text = " ".join(str(exc).split())
+        text = text if len(text) <= 300 else text[:297] + "..."
+        raise MeshError(f"{name}: malformed {fmt.name} file ({type(exc).__name__}: {text})") from exc
 
 
 def save(path: PathLike, mesh: Mesh, *, format: str | None = None, binary: bool | None = None,

@@ -1,23 +1,46 @@
 """OpenUSD (``.usd``, ``.usda``, ``.usdc``), through Pixar's ``usd-core`` (the ``usd`` extra).
 
-Reading: every ``Mesh`` prim of the stage's default time becomes part of one
-:class:`~shapeflow.mesh.Mesh`, placed by its local-to-world transform; USD meshes are
-polygon meshes in CSR already (``faceVertexCounts``, ``faceVertexIndices``), so quads and
-n-gons stay as they are.  The face attribute ``"object"`` (several prims) says which prim a
-face came from; the ``st`` primitive variable becomes the corner attribute ``"uv"``
-(face-varying as written, or spread from vertex interpolation), ``normals`` the corner
-attribute ``"normal"``, ``displayColor`` (vertex) the vertex attribute ``"color"``.
+Reading: every ``Mesh`` prim of the stage becomes part of one :class:`~shapeflow.mesh.Mesh`,
+placed by its local-to-world transform; USD meshes are polygon meshes in CSR already
+(``faceVertexCounts``, ``faceVertexIndices``), so quads and n-gons stay as they are.  The face
+attribute ``"object"`` (several prims) says which prim a face came from; the ``st`` primitive
+variable becomes the corner attribute ``"uv"``, ``primvars:normals`` (or else ``normals``) the
+corner attribute ``"normal"`` (both spread to the corners from any interpolation),
+``displayColor`` (vertex) the vertex attribute ``"color"``.  A prim whose ``orientation`` is
+``leftHanded``, or whose transform mirrors (negative determinant), has its faces' corners
+reversed, so that every face of the mesh winds counter-clockwise around its outward normal.
+
+Time: a prim is read at its default time, or, when its points are time-sampled, at their
+earliest time sample (points, topology, normals, primvars and transform all at that time).
+
+Files that refer to other files: the file's own layer is opened first (``Sdf.Layer``, no
+composition) and every path it refers to is checked before any stage is composed.  With
+``external_files=False`` any such path is refused (sublayers, references, payloads, value clips,
+asset-valued attributes and metadata).  With ``True`` the layers it composes (sublayers,
+references, payloads, clips' ``assetPaths`` and ``manifestAssetPath``) must be USD files inside
+the file's own folder, after following symbolic links: absolute paths, ``..`` leaving the folder,
+links out of it, devices, URIs, format arguments, variable expressions and clip templates are
+refused, naming the path; those layers are checked the same way, then the stage is composed from
+the very layers that were checked.
 
 Writing a mesh read from USD with its faces unchanged (smoothing, enhancement, the brush)
-writes the stage back, flattened into one layer, with new ``points`` (each prim in its own
-coordinates again) and new normals where the prim had them: materials, other prims,
-attributes and metadata pass through.  Any other mesh is written as a new stage with one
-``Mesh`` prim (n-gons kept, ``st`` and ``normals`` face-varying, ``displayColor``).
+writes the stage back with new ``points`` (each prim in its own coordinates again) and new
+normals wherever the prim had them (``normals`` and ``primvars:normals``, each in its own
+interpolation: vertex, varying, faceVarying with its splits kept, uniform, constant; indexed
+normals are written flat), and a new ``extent``: materials, other prims, attributes and metadata
+pass through.  A file of one layer is written as that layer (nothing flattened, asset paths as
+written); a composed stage is flattened into one layer.  Time-sampled points cannot be kept: the
+prim is written as the one pose that was read, and its time-sampled points, normals, extent and
+topology lose their samples (the default value is the new pose); a
+:class:`~shapeflow.errors.DataLossWarning` names each such prim, attribute, sample count and time.
+Any other mesh is written as a new stage with one ``Mesh`` prim (n-gons kept, ``st`` and
+``normals`` face-varying, ``displayColor``).
 """
 
 from __future__ import annotations
 
 import os
+import stat
 import tempfile
 import warnings
 from typing import BinaryIO
@@ -30,6 +53,11 @@ from ..mesh import Mesh
 
 __all__ = ["read_usd", "write_usd"]
 
+#: the layers a USD file may compose (other formats could refer to files that are not checked)
+LAYER_EXTENSIONS = (".usd", ".usda", ".usdc")
+#: at most this many layers are opened for one file
+MAX_LAYERS = 1000
+
 
 def _pxr():
     try:
@@ -39,95 +67,299 @@ def _pxr():
     return Usd, UsdGeom, Sdf, Gf, Vt
 
 
-def _world(UsdGeom, Usd, prim) -> np.ndarray:
+def _pxr_error(exc: Exception) -> str:
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text[:200]}"
+
+
+# --------------------------------------------------------------------------
+# the files a layer refers to, checked before anything is composed
+# --------------------------------------------------------------------------
+
+def _open_layer(Sdf, path: str, name: str, what: str):
+    try:
+        layer = Sdf.Layer.FindOrOpen(path)
+    except Exception as exc:   # pxr raises Tf.ErrorException on a malformed file
+        raise MeshError(f"{name}: {what} is not a readable USD file ({_pxr_error(exc)})") from exc
+    if layer is None:
+        raise MeshError(f"{name}: {what} is not a readable USD file")
+    return layer
+
+
+def _asset_paths(value, Sdf):
+    """The asset paths held in a metadata or attribute value (dictionaries and arrays walked)."""
+    stack = [value]
+    while stack:
+        v = stack.pop()
+        if isinstance(v, Sdf.AssetPath):
+            if v.path:
+                yield v.path
+        elif isinstance(v, dict):
+            stack.extend(v.values())
+        elif isinstance(v, (list, tuple, Sdf.AssetPathArray)):
+            stack.extend(v)
+
+
+def _prim_specs(layer):
+    """Every prim spec of the layer, variants' included (an explicit stack: no recursion limit)."""
+    stack = [layer.pseudoRoot]
+    while stack:
+        spec = stack.pop()
+        yield spec
+        stack.extend(spec.nameChildren.values())
+        for vset in spec.variantSets.values():
+            stack.extend(v.primSpec for v in vset.variants.values())
+
+
+_COMPOSITION_KEYS = {"references", "payload", "clips", "subLayers"}
+
+
+def _references(layer, Sdf, every: bool):
+    """(kind, where, path) for the files the layer refers to: composition arcs and clips; with
+    ``every`` also asset-valued attributes and metadata."""
+    for p in layer.subLayerPaths:
+        yield "sublayer", "the layer's subLayers", p
+    asset_types = (Sdf.ValueTypeNames.Asset, Sdf.ValueTypeNames.AssetArray)
+    for spec in _prim_specs(layer):
+        where = f"<{spec.path}>"
+        if spec.path != Sdf.Path.absoluteRootPath:
+            for kind, proxy in (("reference", spec.referenceList), ("payload", spec.payloadList)):
+                items = (*proxy.explicitItems, *proxy.addedItems, *proxy.prependedItems, *proxy.appendedItems,
+                         *proxy.orderedItems)
+                for item in items:
+                    if item.assetPath:
+                        yield kind, where, item.assetPath
+            clips = spec.GetInfo("clips") if spec.HasInfo("clips") else {}
+            for set_name, clip in (clips.items() if isinstance(clips, dict) else ()):
+                if isinstance(clip, dict) and clip.get("templateAssetPath"):
+                    yield "clip template", f"{where} clip set '{set_name}'", str(clip["templateAssetPath"])
+                for key in ("assetPaths", "manifestAssetPath"):
+                    for p in _asset_paths(clip.get(key) if isinstance(clip, dict) else None, Sdf):
+                        yield "clip", f"{where} clip set '{set_name}'", p
+        if not every:
+            continue
+        for key in spec.ListInfoKeys():
+            if key not in _COMPOSITION_KEYS:
+                for p in _asset_paths(spec.GetInfo(key), Sdf):
+                    yield "asset", f"{where} metadata '{key}'", p
+        for prop in spec.properties:
+            pwhere = f"<{prop.path}>"
+            for key in prop.ListInfoKeys():
+                if key not in ("default", "timeSamples"):
+                    for p in _asset_paths(prop.GetInfo(key), Sdf):
+                        yield "asset", f"{pwhere} metadata '{key}'", p
+            if isinstance(prop, Sdf.AttributeSpec) and prop.typeName in asset_types:
+                values = [prop.default] + [layer.QueryTimeSample(prop.path, t)
+                                           for t in layer.ListTimeSamplesForPath(prop.path)]
+                for p in _asset_paths(values, Sdf):
+                    yield "asset", pwhere, p
+
+
+def _inside(name: str, folder: str, layer, kind: str, where: str, path: str) -> str:
+    """The identifier of the layer ``path`` (found in ``layer``) names, if it is a USD file inside
+    ``folder``; otherwise a MeshError naming it."""
+    def refuse(why):
+        return MeshError(f"{name}: {_layer_name(layer, name)} {where}: the {kind} @{path}@ {why}; "
+                         "only USD files inside the file's own folder are composed")
+    if path.startswith("`"):
+        raise refuse("is a variable expression")
+    if kind == "clip template":
+        raise refuse("names files by a pattern, which cannot be checked")
+    if ":" in path:
+        raise refuse("is not a plain relative file path (a URI, a drive or format arguments)")
+    if os.path.isabs(path):
+        raise refuse("is an absolute path")
+    anchored = os.path.normpath(os.path.join(os.path.dirname(layer.realPath), path))
+    real = os.path.realpath(anchored)
+    if os.path.commonpath([real, folder]) != folder:
+        raise refuse("leaves the folder" + ("" if real == os.path.normpath(anchored) else " (a symbolic link)"))
+    if os.path.splitext(anchored)[1].lower() not in LAYER_EXTENSIONS:
+        raise refuse(f"is not a USD layer ({', '.join(LAYER_EXTENSIONS)})")
+    try:
+        mode = os.stat(real).st_mode
+    except OSError as exc:
+        raise refuse(f"cannot be read ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(mode):
+        raise refuse("is not a regular file")
+    return anchored
+
+
+def _layer_name(layer, name: str) -> str:
+    real = os.path.realpath(layer.realPath)
+    return "the layer" if real == os.path.realpath(name) else f"layer {os.path.basename(real)!r}"
+
+
+def _checked_layers(name: str, external_files: bool, Sdf):
+    """The file's layer and every layer it composes, each opened only after its path was checked."""
+    root = _open_layer(Sdf, name, name, "the file")
+    folder = os.path.realpath(os.path.dirname(os.path.abspath(name)))
+    layers = {os.path.realpath(root.realPath): root}
+    queue = [root]
+    while queue:
+        layer = queue.pop()
+        for kind, where, path in _references(layer, Sdf, every=not external_files):
+            if not external_files:
+                raise MeshError(f"{name}: {_layer_name(layer, name)} {where} refers to the file @{path}@ ({kind}); "
+                                "files that refer to other files are not accepted here")
+            if kind == "asset":
+                continue
+            anchored = _inside(name, folder, layer, kind, where, path)
+            real = os.path.realpath(anchored)
+            if real in layers:
+                continue
+            if len(layers) >= MAX_LAYERS:
+                raise MeshError(f"{name}: composes more than {MAX_LAYERS} layers")
+            dep = _open_layer(Sdf, anchored, name, f"the {kind} @{path}@")
+            layers[real] = dep
+            queue.append(dep)
+    return root, list(layers.values())
+
+
+def _stage(name: str, external_files: bool):
+    Usd, _, Sdf, *_ = _pxr()
+    root, layers = _checked_layers(name, external_files, Sdf)
+    try:
+        stage = Usd.Stage.Open(root, Usd.Stage.LoadAll)
+    except Exception as exc:
+        raise MeshError(f"{name}: the USD stage cannot be composed ({_pxr_error(exc)})") from exc
+    if stage is None:
+        raise MeshError(f"{name}: the USD stage cannot be composed")
+    checked = {os.path.realpath(x.realPath) for x in layers}
+    for used in stage.GetUsedLayers():   # composition opened only what was checked (the session layer aside)
+        if not used.anonymous and os.path.realpath(used.realPath) not in checked:
+            raise MeshError(f"{name}: composing the stage opened {used.identifier!r}, which was not checked")
+    return stage, root, layers
+
+
+# --------------------------------------------------------------------------
+# reading
+# --------------------------------------------------------------------------
+
+def _world(UsdGeom, prim, t) -> np.ndarray:
     """The prim's local-to-world matrix in the column-vector convention (USD stores row vectors)."""
-    m = UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(Usd.TimeCode.Default())
+    m = UsdGeom.Xformable(prim).ComputeLocalToWorldTransform(t)
     return np.array(m, dtype=np.float64).T
 
 
-def _primvar(UsdGeom, prim, name: str, counts, indices):
-    """A primvar as per-corner values (face-varying, or vertex spread to the corners), or None."""
-    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(name)
-    if not pv or not pv.HasValue():
-        return None, None
-    vals = pv.ComputeFlattened()
+def _per_corner(vals, interp: str, counts: np.ndarray, indices: np.ndarray):
+    """Values of any interpolation spread to the corners (file order), or None if they do not fit."""
     if vals is None:
-        return None, None
-    arr = np.asarray(vals, dtype=np.float64)
-    arr = arr.reshape(arr.shape[0], -1) if arr.ndim else arr.reshape(1, -1)
-    interp = pv.GetInterpolation()
-    if interp == UsdGeom.Tokens.faceVarying and arr.shape[0] == indices.size:
-        return arr, interp
-    if interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying) and arr.shape[0] > indices.max(initial=-1):
-        return arr[indices], interp
-    if interp == UsdGeom.Tokens.uniform and arr.shape[0] == counts.size:
-        return np.repeat(arr, counts, axis=0), interp
-    if interp == UsdGeom.Tokens.constant and arr.shape[0] >= 1:
-        return np.repeat(arr[:1], indices.size, axis=0), interp
-    return None, None
-
-
-def _open(name: str):
-    Usd = _pxr()[0]
+        return None
     try:
-        stage = Usd.Stage.Open(name)
-    except Exception as exc:   # pxr raises its own error types on a malformed file
-        raise MeshError(f"{name}: not a readable USD file ({type(exc).__name__}: {str(exc).strip()[:200]})") from None
-    if stage is None:
-        raise MeshError(f"{name}: not a readable USD file")
-    return stage
+        arr = np.asarray(vals, dtype=np.float64)
+    except (TypeError, ValueError):   # a primvar of another type (strings...)
+        return None
+    if arr.ndim == 0 or arr.size == 0 or not np.isfinite(arr).all():
+        return None
+    arr = arr.reshape(arr.shape[0], -1)
+    if interp == "faceVarying" and arr.shape[0] == indices.size:
+        return arr
+    if interp in ("vertex", "varying") and arr.shape[0] > indices.max(initial=-1):
+        return arr[indices]
+    if interp == "uniform" and arr.shape[0] == counts.size:
+        return np.repeat(arr, counts, axis=0)
+    if interp == "constant":
+        return np.repeat(arr[:1], indices.size, axis=0)
+    return None
 
 
-def read_usd(data: bytes, name: str) -> Mesh:
+def _primvar(UsdGeom, prim, name: str, t):
+    """(values, interpolation) of an authored primvar at time t (an indexed one flattened), or (None, None)."""
+    pv = UsdGeom.PrimvarsAPI(prim).GetPrimvar(name)
+    if not pv or not pv.HasAuthoredValue():
+        return None, None
+    return pv.ComputeFlattened(t), str(pv.GetInterpolation())
+
+
+def _normals(UsdGeom, mesh, t):
+    """The normals the prim shows at time t (``primvars:normals`` wins over ``normals``), their
+    interpolation, and every authored normals attribute, to update on writing: [(name, interpolation)]."""
+    authored, shown = [], (None, None)
+    pv = UsdGeom.PrimvarsAPI(mesh.GetPrim()).GetPrimvar("normals")
+    if pv and pv.HasAuthoredValue():
+        interp = str(pv.GetInterpolation())
+        authored.append(("primvars:normals", interp))
+        shown = (pv.ComputeFlattened(t), interp)
+    attr = mesh.GetNormalsAttr()
+    if attr and attr.HasAuthoredValue():
+        interp = str(mesh.GetNormalsInterpolation())
+        authored.append(("normals", interp))
+        if len(authored) == 1:     # no primvars:normals: the attribute is what shows
+            shown = (attr.Get(t), interp)
+    return shown[0], shown[1], authored
+
+
+def reversal(counts: np.ndarray) -> np.ndarray:
+    """The corner permutation that reverses every face's corners (its own inverse)."""
+    ends = np.cumsum(counts)
+    return np.repeat(ends + ends - counts - 1, counts) - np.arange(int(ends[-1]) if counts.size else 0)
+
+
+def _array(value, name: str, prim, what: str, dtype, width: int | None):
+    try:
+        a = np.asarray(value, dtype=dtype)
+    except (TypeError, ValueError) as exc:
+        raise MeshError(f"{name}: {prim.GetPath()}: {what} is not an array of numbers") from exc
+    if (width is None and a.ndim != 1) or (width is not None and (a.ndim != 2 or a.shape[1] != width)):
+        raise MeshError(f"{name}: {prim.GetPath()}: {what} has the shape {a.shape}")
+    return a
+
+
+def _time(mesh, Usd):
+    """The time a prim is read at: the earliest time sample of its points, else the default time."""
+    samples = mesh.GetPointsAttr().GetTimeSamples()
+    return (Usd.TimeCode(samples[0]), float(samples[0])) if samples else (Usd.TimeCode.Default(), None)
+
+
+def read_usd(data: bytes, name: str, *, external_files: bool = True) -> Mesh:
     Usd, UsdGeom, *_ = _pxr()
-    stage = _open(name)
+    stage, root, layers = _stage(name, external_files)
     V, S, F, uv, nrm, col, obj, layout = [], [], [], [], [], [], [], []
     base = 0
     for prim in stage.Traverse():
         if not prim.IsA(UsdGeom.Mesh):
             continue
         mesh = UsdGeom.Mesh(prim)
-        points = mesh.GetPointsAttr().Get()
-        counts = mesh.GetFaceVertexCountsAttr().Get()
-        indices = mesh.GetFaceVertexIndicesAttr().Get()
+        t, when = _time(mesh, Usd)
+        points = mesh.GetPointsAttr().Get(t)
+        counts = mesh.GetFaceVertexCountsAttr().Get(t)
+        indices = mesh.GetFaceVertexIndicesAttr().Get(t)
         if points is None or counts is None or indices is None or len(points) == 0:
             continue
-        P = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-        c = np.asarray(counts, dtype=np.int64)
-        i = np.asarray(indices, dtype=np.int64)
-        if c.sum() != i.size or (i.size and (i.min() < 0 or i.max() >= P.shape[0])):
+        P = _array(points, name, prim, "points", np.float64, 3)
+        c = _array(counts, name, prim, "faceVertexCounts", np.int64, None)
+        i = _array(indices, name, prim, "faceVertexIndices", np.int64, None)
+        if (c < 0).any() or c.sum() != i.size or (i.size and (i.min() < 0 or i.max() >= P.shape[0])):
             raise MeshError(f"{name}: {prim.GetPath()}: faceVertexCounts and faceVertexIndices do not agree "
                             f"with its {P.shape[0]} points")
-        M = _world(UsdGeom, Usd, prim)
-        if abs(np.linalg.det(M[:3, :3])) < 1e-300:
-            raise MeshError(f"{name}: {prim.GetPath()} has a singular transform (scale 0)")
+        M = _world(UsdGeom, prim, t)
+        if not np.isfinite(M).all() or abs(np.linalg.det(M[:3, :3])) < 1e-300:
+            raise MeshError(f"{name}: {prim.GetPath()} has a singular or non-finite transform")
+        left = mesh.GetOrientationAttr().Get(t) == UsdGeom.Tokens.leftHanded
+        flip = bool(left) != bool(np.linalg.det(M[:3, :3]) < 0)
+        perm = reversal(c) if flip else np.arange(i.size)
         V.append(place(P, M))
         S.append(c)
-        F.append(i + base)
+        F.append(i[perm] + base)
         obj.append(np.full(c.size, len(layout)))
-        st, _ = _primvar(UsdGeom, prim, "st", c, i)
-        uv.append(st[:, :2] if st is not None else None)
-        n_attr = mesh.GetNormalsAttr()
-        nv = n_attr.Get() if n_attr and n_attr.HasAuthoredValue() else None
-        n_interp = mesh.GetNormalsInterpolation() if nv is not None else None
-        if nv is not None:
-            nn = np.asarray(nv, dtype=np.float64).reshape(-1, 3)
-            nn = nn[i] if nn.shape[0] == P.shape[0] and n_interp != UsdGeom.Tokens.faceVarying else nn
-            nrm.append(place_normals(nn, M) if nn.shape[0] == i.size else None)
-        else:
-            nrm.append(None)
-        dc, dc_interp = _primvar(UsdGeom, prim, "displayColor", c, i)
-        col.append(dc if dc is not None and dc_interp in (UsdGeom.Tokens.vertex, UsdGeom.Tokens.varying)
-                   else None)
-        layout.append({"path": str(prim.GetPath()), "vertices": P.shape[0], "matrix": M,
-                       "normals": None if nv is None else str(n_interp)})
+        st = _per_corner(*_primvar(UsdGeom, prim, "st", t), c, i)
+        uv.append(st[perm, :2] if st is not None and st.shape[1] >= 2 else None)
+        n_vals, n_interp, authored = _normals(UsdGeom, mesh, t)
+        nn = _per_corner(n_vals, n_interp, c, i)
+        nrm.append(place_normals(nn[perm], M) if nn is not None and nn.shape[1] == 3 else None)
+        dc, dc_interp = _primvar(UsdGeom, prim, "displayColor", t)
+        dc = _per_corner(dc, dc_interp, c, i) if dc_interp in ("vertex", "varying") else None
+        col.append(dc[perm] if dc is not None else None)
+        layout.append({"path": str(prim.GetPath()), "vertices": P.shape[0], "faces": c.size, "matrix": M,
+                       "flip": flip, "normals": authored, "time": when})
         base += P.shape[0]
     if not V:
         raise MeshError(f"{name}: no Mesh prim with points and faces in the USD stage")
-    return _assemble(name, stage, V, S, F, uv, nrm, col, obj, layout)
+    text = root.ExportToString() if len(layers) == 1 else stage.Flatten().ExportToString()
+    return _assemble(name, text, V, S, F, uv, nrm, col, obj, layout)
 
 
-def _assemble(name, stage, V, S, F, uv, nrm, col, obj, layout) -> Mesh:
+def _assemble(name, text, V, S, F, uv, nrm, col, obj, layout) -> Mesh:
     corner, attrs, face = {}, {}, {}
     if all(u is not None for u in uv):
         corner["uv"] = np.concatenate(uv)
@@ -146,15 +378,18 @@ def _assemble(name, stage, V, S, F, uv, nrm, col, obj, layout) -> Mesh:
     try:
         return Mesh.from_csr(np.concatenate(V), np.concatenate(S), faces, attributes=attrs,
                              corner_attributes=corner, face_attributes=face,
-                             metadata={"usd": {"layer": stage.Flatten().ExportToString(), "layout": layout,
-                                               "faces": faces}})
+                             metadata={"usd": {"layer": text, "layout": layout, "faces": faces}})
     except MeshError as exc:
         raise MeshError(f"{name}: {exc}") from None
 
 
+# --------------------------------------------------------------------------
+# writing
+# --------------------------------------------------------------------------
+
 def write_usd(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None, ext: str = ".usda") -> None:
     """The stage as USD text (``.usda``) or crate (``.usdc``; ``.usd`` is crate)."""
-    Usd, UsdGeom, Sdf, Gf, Vt = _pxr()
+    Usd, UsdGeom, Sdf, _, Vt = _pxr()
     meta = mesh.metadata.get("usd", {})
     same = "layer" in meta and np.array_equal(meta.get("faces", np.zeros(0)), mesh.face_indices)
     if "layer" in meta and not same:
@@ -164,10 +399,10 @@ def write_usd(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None, ext: str =
     if same:
         layer.ImportFromString(meta["layer"])
         stage = Usd.Stage.Open(layer)
-        _update(stage, meta["layout"], mesh, UsdGeom, Vt, Gf)
+        _update(stage, meta["layout"], mesh, Usd, UsdGeom, Vt)
     else:
         stage = Usd.Stage.Open(layer)
-        _new_mesh(stage, mesh, UsdGeom, Sdf, Vt, Gf)
+        _new_mesh(stage, mesh, UsdGeom, Sdf, Vt)
     if ext == ".usda" and not binary:
         f.write(stage.GetRootLayer().ExportToString().encode("utf-8"))
         return
@@ -178,30 +413,101 @@ def write_usd(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None, ext: str =
             f.write(g.read())
 
 
-def _update(stage, layout: list, mesh: Mesh, UsdGeom, Vt, Gf) -> None:
-    from ..geometry.normals import vertex_normals
+def prim_normals(interp: str, fa: np.ndarray, counts: np.ndarray, corner_vertex: np.ndarray, n_points: int,
+                 authored: np.ndarray | None) -> np.ndarray:
+    """Area-weighted normals of one prim for an interpolation (not unit length), from its faces' vector
+    areas ``fa`` (faces wound counter-clockwise around the outward normal) and its corners' vertices
+    (mesh order): per point (vertex, varying), per face (uniform), one (constant) or per corner
+    (faceVarying), which keeps the splits of the ``authored`` per-corner normals: the corners of a
+    point that had the same value share the sum over their faces."""
+    if interp == "uniform":
+        return fa
+    if interp == "constant":
+        return fa.sum(axis=0, keepdims=True)
+    per_corner = np.repeat(fa, counts, axis=0)
+    group, k = corner_vertex, n_points                  # vertex, varying: one normal per point
+    if interp == "faceVarying":
+        key = corner_vertex[:, None].astype(np.float64)
+        if authored is not None and authored.shape == (corner_vertex.size, 3):
+            key = np.column_stack([key, authored])
+        _, group = np.unique(key, axis=0, return_inverse=True)
+        group = group.reshape(-1)
+        k = int(group.max(initial=-1)) + 1
+    acc = np.stack([np.bincount(group, per_corner[:, q], minlength=k) for q in range(3)], axis=1)
+    return acc[group] if interp == "faceVarying" else acc
 
-    nrm = vertex_normals(mesh) if any(item["normals"] for item in layout) else None
-    base = 0
+
+def _set(attr, value, what: str) -> list:
+    """Set ``value`` for every time (the attribute's time samples in this layer cleared); returns
+    ["what: N time samples"] when there were samples."""
+    samples = attr.GetTimeSamples()
+    if samples:
+        attr.Clear()
+    attr.Set(value)
+    return [f"{what}: {len(samples)} time samples"] if samples else []
+
+
+def _update(stage, layout: list, mesh: Mesh, Usd, UsdGeom, Vt) -> None:
+    from ..geometry.measures import face_vector_areas
+
+    fa_all = face_vector_areas(mesh)
+    base = fbase = cbase = 0
+    frozen = []
     for item in layout:
-        n = item["vertices"]
+        n, nf = item["vertices"], item["faces"]
         M = np.asarray(item["matrix"])
-        local = unplace(mesh.vertices[base:base + n], M)
         prim = UsdGeom.Mesh(stage.GetPrimAtPath(item["path"]))
-        prim.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(local, np.float32)))
-        if item["normals"] is not None:
-            ln = unplace_normals(nrm[base:base + n], M)
-            if item["normals"] == str(UsdGeom.Tokens.faceVarying):
-                idx = np.asarray(prim.GetFaceVertexIndicesAttr().Get(), dtype=np.int64)
-                ln = ln[idx]
-            prim.GetNormalsAttr().Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(ln, np.float32)))
-        extent = UsdGeom.Boundable.ComputeExtentFromPlugins(UsdGeom.Boundable(prim.GetPrim()), 0)
+        tc = Usd.TimeCode.Default() if item["time"] is None else Usd.TimeCode(item["time"])
+        counts = mesh.face_sizes[fbase:fbase + nf]
+        nc = int(counts.sum())
+        corner_vertex = mesh.face_indices[cbase:cbase + nc] - base
+        perm = reversal(counts) if item["flip"] else np.arange(nc)
+        changed = []
+        if item["time"] is not None:   # the pose read: its topology too, so that every time agrees
+            for attr, what in ((prim.GetFaceVertexCountsAttr(), "faceVertexCounts"),
+                               (prim.GetFaceVertexIndicesAttr(), "faceVertexIndices")):
+                if attr.GetNumTimeSamples():
+                    changed += _set(attr, attr.Get(tc), what)
+        for attr_name, interp in item["normals"]:
+            changed += _write_normals(prim, attr_name, interp, tc, fa_all[fbase:fbase + nf], counts,
+                                      corner_vertex, n, perm, M, UsdGeom, Vt)
+        local = unplace(mesh.vertices[base:base + n], M)
+        changed = _set(prim.GetPointsAttr(), Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(local, np.float32)),
+                       "points") + changed
+        extent = UsdGeom.Boundable.ComputeExtentFromPlugins(UsdGeom.Boundable(prim.GetPrim()),
+                                                            Usd.TimeCode.Default())
         if extent:
-            prim.GetExtentAttr().Set(extent)
-        base += n
+            changed += _set(prim.GetExtentAttr(), extent, "extent")
+        if changed:
+            frozen.append(f"{item['path']} at time {item['time']:g} ({', '.join(changed)})")
+        base, fbase, cbase = base + n, fbase + nf, cbase + nc
+    if frozen:
+        warnings.warn(DataLossWarning(
+            "USD animation not kept: time-sampled attributes written as the one pose that was read "
+            "(the earliest time sample of the points), the same at every time: " + "; ".join(frozen)),
+            stacklevel=5)
 
 
-def _new_mesh(stage, mesh: Mesh, UsdGeom, Sdf, Vt, Gf) -> None:
+def _write_normals(prim, attr_name, interp, tc, fa, counts, corner_vertex, n_points, perm, M, UsdGeom, Vt) -> list:
+    """New normals for one authored normals attribute, in its interpolation and the prim's coordinates."""
+    pv = UsdGeom.PrimvarsAPI(prim.GetPrim()).GetPrimvar("normals") if attr_name == "primvars:normals" else None
+    attr = pv.GetAttr() if pv is not None else prim.GetNormalsAttr()
+    authored = None
+    if interp == "faceVarying":      # its splits: the authored per-corner values, in mesh order
+        vals = pv.ComputeFlattened(tc) if pv is not None else attr.Get(tc)
+        arr = np.asarray(vals, np.float64).reshape(-1, 3) if vals is not None and len(vals) else None
+        authored = arr[perm] if arr is not None and arr.shape[0] == perm.size else None
+    world = prim_normals(interp, fa, counts, corner_vertex, n_points, authored)
+    if interp == "faceVarying":
+        world = world[perm]          # back to the file's corner order
+    local = unplace_normals(world, M)
+    changed = _set(attr, Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(local, np.float32)), attr_name)
+    if pv is not None and pv.IsIndexed():
+        pv.BlockIndices()            # written flat: one value per element
+    return changed
+
+
+def _new_mesh(stage, mesh: Mesh, UsdGeom, Sdf, Vt) -> None:
     from ..mesh.attributes import expand
 
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
