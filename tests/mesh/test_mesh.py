@@ -157,3 +157,34 @@ def test_repr_and_face_helpers():
     with pytest.raises(sf.MeshError, match="mixed sizes"):
         m.faces_as_array()
     assert m.faces_as_lists() == [[0, 1, 2, 3], [1, 4, 2]]
+
+
+def test_a_mesh_pickles_read_only_with_its_attributes_and_weld_map():
+    import pickle
+
+    soup = sf.Mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.]]),
+                   [[0, 1, 2], [3, 4, 5, 0]], weights=np.linspace(0, 1, 6), metadata={"name": "soup"})
+    welded = sf.weld(soup)
+    for m in (soup, welded):
+        back = pickle.loads(pickle.dumps(m))
+        np.testing.assert_array_equal(back.vertices, m.vertices)
+        np.testing.assert_array_equal(back.face_indices, m.face_indices)
+        np.testing.assert_array_equal(back.face_offsets, m.face_offsets)
+        np.testing.assert_array_equal(back.weights, m.weights)
+        assert back.metadata == m.metadata
+        assert not back.vertices.flags.writeable and not back.face_indices.flags.writeable
+        np.testing.assert_array_equal(back.topology.edges, m.topology.edges)   # caches rebuilt, not carried
+    np.testing.assert_array_equal(pickle.loads(pickle.dumps(welded)).weld_map, welded.weld_map)
+
+
+def test_weld_if_split_welds_only_split_meshes():
+    from shapeflow.geometry.weld import weld_if_split
+
+    closed = sf.load_example("spot")
+    assert weld_if_split(closed) is closed
+    soup = sf.Mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0.]]),
+                   [[0, 1, 2], [3, 4, 5]])
+    w = weld_if_split(soup)
+    assert w is not soup and w.n_vertices == 4 and w.weld_map.tolist() == [0, 1, 2, 1, 3, 2]
+    open_grid = sf.Mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.]]), [[0, 1, 2]])
+    assert weld_if_split(open_grid) is open_grid                # open, but nothing coincides

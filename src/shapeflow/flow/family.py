@@ -96,7 +96,7 @@ from .options import check_run_options
 from .report import FamilyReport
 from .solver import FlowSolver
 
-__all__ = ["family", "family_meshes", "FamilyReport", "STRATEGIES"]
+__all__ = ["family", "family_meshes", "family_bytes", "FamilyReport", "STRATEGIES"]
 
 
 #: ``strategy=`` values: choose, insist on the shared solve, or force per-λ solves
@@ -110,6 +110,12 @@ def check_lams(lams) -> np.ndarray:
     if not vals:
         raise ParameterError("lams is empty: give at least one λ")
     return np.array(vals, dtype=np.float64)
+
+
+def family_bytes(k: int, n: int) -> float:
+    """Memory (bytes) a family of ``k`` members of ``n`` vertices needs: the (k, n, 3) result plus the
+    shared solve's work (~4 such blocks of one batch of members)."""
+    return 24.0 * n * (k + 4 * min(k, 64))
 
 
 @accel.heavy
@@ -180,9 +186,7 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
     k, n = lam_arr.size, mesh.n_vertices
     from ..budget import check_memory
 
-    # the (k, n, 3) result, plus the shared solve's work (~4 such blocks of one batch of members)
-    check_memory(f"a family of {k:,} members of {n:,} vertices", 24.0 * n * (k + 4 * min(k, 64)),
-                 parameter="lams")
+    check_memory(f"a family of {k:,} members of {n:,} vertices", family_bytes(k, n), parameter="lams")
     report = FamilyReport(lams=lam_arr, path="unchanged", reason="", lam_border=flow_solver.lam_border,
                           iterations=int(iterations), mode="blender" if flow_solver.blender else "paper",
                           scheme=flow_solver.scheme, update=update, member_iterations=np.zeros(k, np.int64))

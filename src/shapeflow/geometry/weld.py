@@ -27,7 +27,7 @@ from ..mesh.attributes import Indexed, Labels
 from ..mesh.convert import as_mesh
 from .normals import refresh_normals
 
-__all__ = ["WELD_TOL", "weld", "weld_map", "unweld", "needs_weld"]
+__all__ = ["WELD_TOL", "weld", "weld_map", "unweld", "needs_weld", "may_need_weld", "weld_if_split"]
 
 #: default welding distance, relative to the bounding-box diagonal (float32 files round at ~6e-8)
 WELD_TOL = 1e-7
@@ -64,6 +64,23 @@ def needs_weld(mesh: Mesh, *, tol: float = WELD_TOL) -> bool:
     """Whether some vertices of ``mesh`` coincide (within ``tol`` × the diagonal): seams or a soup."""
     m = weld_map(mesh.vertices, tol, mesh.diagonal)
     return bool(m.size) and int(m.max()) + 1 < mesh.n_vertices
+
+
+def may_need_weld(mesh: Mesh) -> bool:
+    """False for a mesh whose faces leave no boundary edge: a vertex split at a seam (or a soup) always
+    leaves boundary edges along it, so a closed mesh has nothing to weld and skips the neighbour search
+    (2.6 s for a 2M-vertex scan, 2026-11-24)."""
+    return bool(mesh.n_faces) and bool(mesh.topology.boundary_edge_mask.any())
+
+
+def weld_if_split(mesh: Mesh, *, tol: float = WELD_TOL) -> Mesh:
+    """:func:`weld` where some vertices coincide (seams, a triangle soup), else ``mesh`` itself
+    (``result is mesh`` tells which)."""
+    mesh = as_mesh(mesh)
+    if not may_need_weld(mesh):
+        return mesh
+    welded = weld(mesh, tol=tol)
+    return mesh if welded.n_vertices == mesh.n_vertices else welded
 
 
 def weld(mesh: Mesh, *, tol: float = WELD_TOL) -> Mesh:

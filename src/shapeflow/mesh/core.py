@@ -106,6 +106,12 @@ class Mesh:
         self._face = {str(k): as_face_attribute(str(k), v, t.n_faces) for k, v in (face_attributes or {}).items()}
         self._meta = dict(metadata or {})
 
+    def __reduce__(self):
+        """Pickled as its arrays and mappings; read back read-only, as built (a mesh read by a child
+        process travels this way)."""
+        return (_unpickle, (self._vertices, self._topology, self._attributes, self._corner, self._face, self._meta,
+                            dict(self.__dict__)))
+
     # --- construction ----------------------------------------------------
     @classmethod
     def from_csr(cls, vertices, face_sizes, face_indices, **kw) -> "Mesh":
@@ -406,6 +412,16 @@ class Mesh:
         )
 
     __hash__ = None  # mutable-looking container semantics: not hashable
+
+
+def _unpickle(vertices, topology, attributes, corner, face, meta, extra) -> Mesh:
+    m = Mesh.__new__(Mesh)
+    for a in (vertices, topology.face_indices, topology.face_offsets):
+        a.flags.writeable = False
+    m._vertices, m._topology, m._attributes, m._corner, m._face, m._meta = (
+        vertices, topology, attributes, corner, face, meta)
+    m.__dict__.update(extra)
+    return m
 
 
 def _same(a, b) -> bool:

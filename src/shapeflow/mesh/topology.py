@@ -32,6 +32,13 @@ class Topology:
         self._derived: dict = {}
         self._derived_lock = threading.Lock()
 
+    def __getstate__(self) -> dict:
+        """Pickled without its caches and lock (a mesh read by a child process travels this way)."""
+        return {"face_indices": self.face_indices, "face_offsets": self.face_offsets, "n_vertices": self.n_vertices}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__init__(state["face_indices"], state["face_offsets"], state["n_vertices"])
+
     def derived(self, key: Hashable, build: Callable[[], Any]) -> Any:
         """A structure that a higher layer derives from this connectivity alone, built once and cached.
 
