@@ -96,7 +96,7 @@ def test_a_dab_a_second_tab_and_the_download(page, server):
     np.testing.assert_array_equal(shown(page), moved.astype(np.float32))
     page.close()
     page.switch_to.window(first)
-    body = urllib.request.urlopen(server.url + "download/result.ply").read()
+    body = urllib.request.urlopen(server.link("download/result.ply")).read()
     path = f"{pytest.importorskip('tempfile').mkdtemp()}/result.ply"
     with open(path, "wb") as f:
         f.write(body)
@@ -109,7 +109,7 @@ def test_the_server_is_local_and_serves_only_its_own_files(server):
     assert server.url.startswith("http://127.0.0.1:")
     for bad in ("static/../server.py", "static/%2e%2e/server.py", "download/x.exe"):
         with pytest.raises(urllib.error.HTTPError) as exc:
-            urllib.request.urlopen(server.url + bad)
+            urllib.request.urlopen(server.link(bad))
         assert exc.value.code in (400, 403, 404)
 
 

@@ -189,13 +189,13 @@ def test_oversized_and_unknown_uploads_are_refused(page, server, tmp_path):
     wait(page, "return window.studio.error !== null")
     assert "larger than the studio accepts" in page.execute_script("return window.studio.error")
     with pytest.raises(urllib.error.HTTPError) as exc:
-        urllib.request.urlopen(urllib.request.Request(server.url + "open?name=big.obj", data=big.read_bytes()))
+        urllib.request.urlopen(urllib.request.Request(server.link("open", name="big.obj"), data=big.read_bytes()))
     assert exc.value.code == 413 and b"--max-upload" in exc.value.read()
     with pytest.raises(urllib.error.HTTPError) as exc:
-        urllib.request.urlopen(urllib.request.Request(server.url + "open?name=notes.exe", data=b"MZ"))
+        urllib.request.urlopen(urllib.request.Request(server.link("open", name="notes.exe"), data=b"MZ"))
     assert exc.value.code == 400 and b".exe" in exc.value.read()
     with pytest.raises(urllib.error.HTTPError) as exc:                # a broken file: the reader's message
-        urllib.request.urlopen(urllib.request.Request(server.url + "open?name=bad.obj", data=b"f 1 2 3\n"))
+        urllib.request.urlopen(urllib.request.Request(server.link("open", name="bad.obj"), data=b"f 1 2 3\n"))
     assert exc.value.code == 400 and b"bad.obj" in exc.value.read()
     assert server.session.mesh.n_vertices == n and not leftovers()
 

@@ -10,12 +10,16 @@ def register(sub) -> None:
         "studio", help="enhance, paint weights and sculpt in a web browser (needs shapeflow[studio])",
         description="Start ShapeFlow Studio on MESH (default example:spot) and open it in the browser: a λ slider "
                     "that walks a family of shapes, weight painting, the enhancement and inflate brushes, undo, "
-                    "download in every format.  Serves on 127.0.0.1 only unless --host says otherwise; Ctrl-C ends it.")
+                    "download in every format.  Serves on 127.0.0.1 only unless --host says otherwise; every "
+                    "request needs the token in the printed address (?token=...); Ctrl-C ends it.")
     p.add_argument("mesh", nargs="?", default="example:spot", metavar="MESH",
                    help="a mesh file or example:NAME (default example:spot)")
     p.add_argument("--port", type=int, default=8765, help="port (default 8765; 0 picks a free one)")
     p.add_argument("--host", default="127.0.0.1",
                    help="address to listen on (default 127.0.0.1: this machine only; 0.0.0.0 serves the network)")
+    p.add_argument("--allow-host", action="append", default=[], metavar="NAME",
+                   help="another name browsers may use for this machine (e.g. its DNS name with --host 0.0.0.0); "
+                        "repeatable")
     p.add_argument("--max-upload", type=float, default=512, metavar="MIB",
                    help="largest file a page may open, in MiB (default 512)")
     p.add_argument("--no-browser", action="store_true", help="print the address, do not open a browser")
@@ -32,16 +36,39 @@ def run(args) -> int:
     mesh = load_mesh_arg(args.mesh)
     mib = params.number("--max-upload", args.max_upload, lo=0.001)
     server = StudioServer(mesh, host=args.host, port=args.port, max_upload=int(mib * 2**20),
-                          name=os.path.basename(args.mesh).removeprefix("example:"))
+                          name=os.path.basename(args.mesh).removeprefix("example:"), allow_hosts=args.allow_host)
     eprint(f"shapeflow studio: {mesh.n_vertices:,} vertices at {server.url} (Ctrl-C ends it)")
-    if args.host not in ("127.0.0.1", "localhost", "::1"):
-        eprint(f"shapeflow studio: warning: listening on {args.host}: anyone who can reach this machine can edit")
+    if not server.loopback:
+        eprint(f"shapeflow studio: warning: listening on {args.host}: anyone who can reach this machine and has "
+               "the address above (its token) can edit; HTTP is not encrypted, so use it on networks you trust")
+    opener = None
     if not args.no_browser:
-        import webbrowser
-
-        webbrowser.open(server.url)
+        opener = _open_browser(server.url)
     try:
         threading.Event().wait()
     finally:
         server.stop()
+        if opener is not None:
+            opener.cleanup()
     return 0
+
+
+def _open_browser(url: str):
+    """Open ``url`` through a page only this user can read (as Jupyter does): a browser started with
+    the token on its command line would show it to every user of the machine (``ps``).  Returns the
+    temporary folder holding that page."""
+    import html
+    import os
+    import tempfile
+    import webbrowser
+
+    folder = tempfile.TemporaryDirectory(prefix="shapeflow-studio-open-")
+    os.chmod(folder.name, 0o700)
+    page = os.path.join(folder.name, "open.html")
+    fd = os.open(page, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    with os.fdopen(fd, "w", encoding="utf-8") as f:
+        u = html.escape(url, quote=True)
+        f.write(f'<!doctype html><meta charset="utf-8"><meta http-equiv="refresh" content="0;url={u}">'
+                f'<title>ShapeFlow Studio</title><p><a href="{u}">ShapeFlow Studio</a></p>\n')
+    webbrowser.open("file://" + page)
+    return folder

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import asyncio
 import threading
+from urllib.parse import quote, urlencode
 
 from .. import params
 from ..errors import ParameterError
-from .server import DEFAULT_LAMS, MAX_UPLOAD, hub_of, make_app
+from .security import is_loopback
+from .server import DEFAULT_LAMS, MAX_UPLOAD, guard_of, hub_of, make_app
 from .session import StudioSession
 
 __all__ = ["StudioServer", "studio"]
@@ -16,21 +18,29 @@ __all__ = ["StudioServer", "studio"]
 class StudioServer:
     """The studio's web server on a background thread (its own asyncio loop).
 
-    ``url`` is where a browser opens it; :meth:`stop` ends it.  Binds to 127.0.0.1 unless
-    ``host`` says otherwise; ``port=0`` picks a free port.  ``max_upload``: the largest file
-    (bytes) a page may open; ``name``: what the page calls the mesh.
+    ``url`` is where a browser opens it, with the server's token (``?token=…``; see
+    :mod:`~shapeflow.studio.security`); :meth:`link` makes the address of any route with it;
+    :meth:`stop` ends it.  Binds to 127.0.0.1 unless ``host`` says otherwise (any other address
+    still needs the token); ``port=0`` picks a free port.  ``max_upload``: the largest file
+    (bytes) a page may open; ``name``: what the page calls the mesh; ``token``: the token (a fresh
+    random one by default); ``allow_hosts``: more names a browser may use for this machine;
+    ``outbox_limit`` and ``stall_seconds``: as for :func:`~shapeflow.studio.server.make_app`.
     """
 
     def __init__(self, mesh_or_session, *, host: str = "127.0.0.1", port: int = 0, lams=DEFAULT_LAMS,
-                 solve: bool = True, max_upload: int = MAX_UPLOAD, name: str = ""):
+                 solve: bool = True, max_upload: int = MAX_UPLOAD, name: str = "", token: str | None = None,
+                 allow_hosts=(), **queue):
         from aiohttp import web
 
         session = mesh_or_session if isinstance(mesh_or_session, StudioSession) else \
             StudioSession(mesh_or_session)
         port = params.integer("port", port, lo=0, hi=65535)
+        if token is not None and (not isinstance(token, str) or len(token) < 16 or not token.isprintable()):
+            raise ParameterError("token must be a string of at least 16 printable characters")
         self._loop = asyncio.new_event_loop()
-        self._app = make_app(session, lams=lams, solve=solve, max_upload=max_upload, name=name)
-        self._runner = web.AppRunner(self._app, access_log=None)
+        self._app = make_app(session, lams=lams, solve=solve, max_upload=max_upload, name=name, token=token,
+                             host=host, port=port, allow_hosts=allow_hosts, **queue)
+        self._runner = web.AppRunner(self._app, access_log=None, shutdown_timeout=1.0)
         started = threading.Event()
         failure: list = []
 
@@ -41,6 +51,7 @@ class StudioServer:
                 site = web.TCPSite(self._runner, host, port)
                 self._loop.run_until_complete(site.start())
                 self.port = site._server.sockets[0].getsockname()[1]   # noqa: SLF001 (aiohttp has no getter)
+                guard_of(self._app).port = self.port
             except OSError as exc:
                 failure.append(exc)
                 started.set()
@@ -54,7 +65,24 @@ class StudioServer:
         if failure:
             raise ParameterError(f"the studio cannot listen on {host}:{port} ({failure[0].strerror or failure[0]})")
         self.host = host
-        self.url = f"http://{'127.0.0.1' if host in ('0.0.0.0', '') else host}:{self.port}/"
+        shown = "127.0.0.1" if host in ("0.0.0.0", "", "::") else host
+        self.address = f"http://{'[' + shown + ']' if ':' in shown else shown}:{self.port}/"
+        self.url = self.link()
+
+    @property
+    def token(self) -> str:
+        """The token every request needs (also in :attr:`url`)."""
+        return guard_of(self._app).token
+
+    @property
+    def loopback(self) -> bool:
+        """Whether only this machine can reach the server."""
+        return is_loopback(self.host)
+
+    def link(self, path: str = "", **query) -> str:
+        """The absolute address of ``path`` (e.g. ``"download/shape.ply"``) with the token and
+        ``query`` as its query string."""
+        return self.address + quote(path.lstrip("/"), safe="/%") + "?" + urlencode({**query, "token": self.token})
 
     @property
     def session(self) -> StudioSession:
@@ -62,12 +90,23 @@ class StudioServer:
         return hub_of(self._app).session
 
     def stop(self) -> None:
-        """End the server (open pages lose their connection)."""
+        """End the server at once: open pages lose their connection, a page that stopped reading
+        included (its socket is aborted, not waited for)."""
         if not self._loop.is_running():
             return
-        fut = asyncio.run_coroutine_threadsafe(self._runner.cleanup(), self._loop)
+
+        async def shutdown():
+            hub = hub_of(self._app)
+            for ws, box in list(hub.sockets.items()):
+                box.close()
+                box.abort()
+            await self._runner.cleanup()
+
+        fut = asyncio.run_coroutine_threadsafe(shutdown(), self._loop)
         try:
             fut.result(10)
+        except Exception:           # noqa: BLE001 - the loop is stopped below whatever happened
+            pass
         finally:
             self._loop.call_soon_threadsafe(self._loop.stop)
             self._thread.join(10)

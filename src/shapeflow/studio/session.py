@@ -34,6 +34,10 @@ def smooth_falloff(t: np.ndarray) -> np.ndarray:
     return (1.0 - t * t) ** 2
 
 
+class _Superseded(Exception):
+    """Raised inside a family solve whose result nobody wants any more."""
+
+
 @dataclass
 class FamilyStatus:
     """Where the background family solve stands."""
@@ -69,10 +73,13 @@ class StudioSession:
     """
 
     def __init__(self, mesh: Mesh, *, undo_steps: int = 64):
+        from ..geometry.weld import weld_if_split
         from ..mesh.convert import as_mesh
 
         mesh = as_mesh(mesh, "the studio's mesh")
         self._lock = threading.RLock()
+        self._input = mesh
+        mesh = weld_if_split(mesh)      # seams and soups: one vertex per point, as the command line does
         self._base = mesh
         self._V = np.array(mesh.vertices, dtype=np.float64)
         w = mesh.weights
@@ -83,6 +90,7 @@ class StudioSession:
         self._family: np.ndarray | None = None
         self._status = FamilyStatus()
         self._job = 0
+        self._thread: threading.Thread | None = None
         self._brush = None
         self._brush_key = None
         self.version = 0      #: increases with every change of positions or weights
@@ -90,10 +98,35 @@ class StudioSession:
 
     # --- state ---------------------------------------------------------
     @property
+    def base(self) -> Mesh:
+        """The mesh the session edits, at the positions it was opened with (welded where the input's
+        vertices were split: see :attr:`welded`)."""
+        return self._base
+
+    @property
+    def welded(self) -> bool:
+        """Whether the input's vertices were split at seams (or formed a soup) and the session edits
+        them welded (:func:`shapeflow.weld`): :attr:`vertices` has one row per welded vertex,
+        :attr:`mesh` the input's own layout."""
+        return self._base is not self._input
+
+    @property
+    def n_input_vertices(self) -> int:
+        """The vertex count of the mesh as opened (before welding)."""
+        return self._input.n_vertices
+
+    @property
     def mesh(self) -> Mesh:
-        """The current mesh, weights as its ``"weight"`` attribute (attributes of the input kept)."""
+        """The current mesh on the input's own layout (a welded session's copies of a vertex all get
+        its position and weight), weights as its ``"weight"`` attribute, the input's attributes kept."""
         with self._lock:
-            return self._base.with_vertices(self._V.copy()).with_weights(self._w.copy())
+            V, w = self._V.copy(), self._w.copy()
+        if not self.welded:
+            return self._base.with_vertices(V).with_weights(w)
+        from ..geometry.weld import unweld
+
+        wmap = self._base.weld_map
+        return unweld(self._base.with_vertices(V), self._input, self._base).with_weights(w[wmap])
 
     @property
     def vertices(self) -> np.ndarray:
@@ -164,6 +197,10 @@ class StudioSession:
         if weights is None:
             raise ParameterError("weights must be one number per vertex in [0, 1], got None")
         with self._lock:
+            if self.welded and np.ndim(weights) == 1 and len(weights) == self._input.n_vertices:
+                # one weight per vertex of the file as opened: each welded vertex takes its first copy's
+                first = np.unique(self._base.weld_map, return_index=True)[1]
+                weights = np.asarray(weights)[first]
             w = resolve_weights(self._base, weights)
             self._record("weights", np.arange(self._V.shape[0]), None, w)
 
@@ -233,25 +270,46 @@ class StudioSession:
 
         def progress(done, total):
             with self._lock:
-                if job == self._job:
-                    self._status.done, self._status.total = int(done), int(total)
+                if job != self._job:
+                    raise _Superseded      # a newer solve was asked for: this one stops here
+                self._status.done, self._status.total = int(done), int(total)
 
-        def work():
+        def work(previous):
+            if previous is not None:
+                previous.join()            # one solve at a time: the superseded one ends first
             try:
+                with self._lock:
+                    if job != self._job:
+                        return
                 shapes = family(mesh, lam_arr, weights=w, progress=progress, **flow_options)
                 with self._lock:
                     if job == self._job:
                         self._family = np.asarray(shapes)
                         self._status.state, self._status.done = "done", self._status.total
+            except _Superseded:
+                pass
             except Exception as exc:   # reported through family_status, never lost in a thread
                 with self._lock:
                     if job == self._job:
                         self._status.state, self._status.error = "failed", f"{type(exc).__name__}: {exc}"
 
+        with self._lock:
+            previous, self._thread = self._thread, None
         if wait:
-            work()
+            work(previous)
         else:
-            threading.Thread(target=work, name="shapeflow-studio-family", daemon=True).start()
+            t = threading.Thread(target=work, args=(previous,), name="shapeflow-studio-family", daemon=True)
+            with self._lock:
+                self._thread = t
+            t.start()
+
+    def wait_family(self, timeout: float | None = None) -> FamilyStatus:
+        """Wait until the current family solve ends (or ``timeout`` seconds pass); its status."""
+        with self._lock:
+            t = self._thread
+        if t is not None:
+            t.join(timeout)
+        return self.family_status()
 
     def family_status(self) -> FamilyStatus:
         with self._lock:

@@ -149,7 +149,10 @@ function requestField() {                  // of the shape shown: the slider's p
 }
 
 // --- the server connection -------------------------------------------------
-const ws = new WebSocket(`ws://${location.host}/ws`);
+// the token this page was opened with (?token=…): every request that changes something carries it
+const token = new URLSearchParams(location.search).get("token") || "";
+const authed = { "X-Shapeflow-Token": token };
+const ws = new WebSocket(`ws://${location.host}/ws?token=${encodeURIComponent(token)}`);
 ws.binaryType = "arraybuffer";
 const send = (msg) => { studio.pending++; ws.send(JSON.stringify(msg)); };
 studio.send = send;
@@ -158,12 +161,12 @@ function receive(ev) {
     const m = JSON.parse(ev.data);
     waiting = false;                     // an answer: the brush may send its next dab
     if (m.type === "state" || m.type === "error") studio.lamAnswered(m);
-    if (m.type === "mesh") { n = m.n_vertices; dispose(); studio.ready = false; studio.field = null;
+    if (m.type === "mesh") { n = m.n_vertices; dispose(); studio.ready = false; studio.field = null; studio.pending = 0;
                              studio.name = m.name; formats(m.formats || []);
                              studio.lam = 0; $("lam").value = 0; $("lam-value").textContent = 0; }
     else if (m.type === "state") {
       const changed = m.version !== studio.version;
-      state(m); studio.pending = Math.max(0, studio.pending - 1);
+      state(m); studio.pending = m.resync ? 0 : Math.max(0, studio.pending - 1);
       if (changed && $("colours").value !== "weights" && $("colours").value !== "none") requestField();
     }
     else if (m.type === "field") {
@@ -242,7 +245,7 @@ async function upload(route, file) {
   $("status").textContent = `opening ${file.name}…`;
   studio.uploading = (studio.uploading || 0) + 1;
   try {
-    const r = await fetch(`/${route}?name=${encodeURIComponent(file.name)}`, { method: "POST", body: file });
+    const r = await fetch(`/${route}?name=${encodeURIComponent(file.name)}`, { method: "POST", body: file, headers: authed });
     if (!r.ok) { studio.error = await r.text(); $("error").textContent = studio.error; }
   } catch (err) {
     studio.error = `${file.name}: the upload failed (${err.message})`; $("error").textContent = studio.error;
@@ -289,7 +292,7 @@ function formats(exts) {              // what the server reads and writes: the d
 }
 $("download").onclick = async () => {
   const name = `${(studio.name || "shapeflow-studio").replace(/\.[^.]*$/, "")}-studio.${$("format").value}`;
-  const r = await fetch(`/download/${encodeURIComponent(name)}`);
+  const r = await fetch(`/download/${encodeURIComponent(name)}`, { headers: authed });
   if (!r.ok) { studio.error = await r.text(); $("error").textContent = studio.error; return; }
   const a = document.createElement("a");
   a.href = URL.createObjectURL(await r.blob()); a.download = name; a.click();
