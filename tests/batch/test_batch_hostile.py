@@ -368,3 +368,26 @@ def test_killed_run_leaves_no_semaphores_for_the_next(data, tmp_path):
     assert run.returncode == 0, run.stderr
     assert "leaked" not in run.stderr and "Traceback" not in run.stderr
     assert {r["input"] for r in records(out) if r["status"] == "done"} == {str(g) for g in (root / "a").iterdir()}
+
+
+def test_url_inputs_with_default_options(data, tmp_path):
+    """memory:// (only this process sees it: the driver sends its bytes), file:// and local:// URLs, each
+    with the default options (a local cluster of worker processes), same bytes as the single-file command."""
+    fsspec = pytest.importorskip("fsspec")
+    import shapeflow.batch as sb
+
+    root, good = data
+    a = sorted((root / "a").iterdir())
+    fs = fsspec.filesystem("memory")
+    for p in a:
+        fs.pipe(f"/hostile-set/{p.name}", p.read_bytes())
+    rep = sb.run("memory://hostile-set", str(tmp_path / "mem"), OP, progress=False)
+    assert rep.ok and len(rep.done) == len(a), rep.summary()
+    for p in a:
+        assert (tmp_path / "mem" / p.name).read_bytes() == reference(p, tmp_path)
+    for scheme in ("file://", "local://"):
+        out = tmp_path / scheme[:-3]
+        run = batch(scheme + str(root / "a"), out, *OP)
+        assert run.returncode == 0, run.stderr
+        assert sorted(r["input"] for r in records(out)) == [str(p) for p in a]
+        assert all((out / p.name).read_bytes() == reference(p, tmp_path) for p in a)
