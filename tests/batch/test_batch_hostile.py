@@ -391,3 +391,36 @@ def test_url_inputs_with_default_options(data, tmp_path):
         assert run.returncode == 0, run.stderr
         assert sorted(r["input"] for r in records(out)) == [str(p) for p in a]
         assert all((out / p.name).read_bytes() == reference(p, tmp_path) for p in a)
+
+
+def test_on_a_terminal_only_the_batch_bar(data, tmp_path):
+    """stderr a terminal: the batch's tqdm bar is the only bar (each file's flow would draw its own), and no
+    progress line is printed."""
+    pytest.importorskip("tqdm")
+    import fcntl
+    import pty
+    import struct
+    import termios
+
+    root, good = data
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 24, 100, 0, 0))    # a 100-column terminal
+    p = subprocess.Popen([sys.executable, "-m", "shapeflow", "batch", "--progress-interval", "0.05", str(root / "a"),
+                          str(tmp_path / "out"), "smooth", "-s", "1", "--iterations", "20"],
+                         env=ENV, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=slave)
+    os.close(slave)
+    chunks = []
+    while True:
+        try:
+            chunk = os.read(master, 4096)
+        except OSError:                    # the terminal's other end closed
+            break
+        if not chunk:
+            break
+        chunks.append(chunk)
+    assert p.wait(timeout=300) == 0
+    os.close(master)
+    text = b"".join(chunks).decode(errors="replace")
+    bars = [seg for seg in re.split(r"[\r\n]", text) if "%|" in seg]
+    assert bars and all(seg.lstrip("\x1b[A ").startswith("batch:") for seg in bars), bars
+    assert "files/s, ETA" not in text and "flow:" not in text
