@@ -118,3 +118,68 @@ def test_process_file_in_a_plain_pool(tree, tmp_path):
     assert cli.main(["smooth", str(tree / "a" / "x.obj"), str(tmp_path / "ref.obj"), "-s", "3"]) == 0
     assert (tmp_path / "x.obj").read_bytes() == (tmp_path / "ref.obj").read_bytes()
     assert sorted(os.listdir(tmp_path)) == ["in", "ref.obj", "x.obj"]      # no work folder left behind
+
+
+def test_output_names_stay_below_the_root():
+    """Hostile relative names, each with its normal form worked out by hand (RFC 3986 §5.2.4: '..'
+    removes the segment before it and never climbs above the root)."""
+    from shapeflow.batch.paths import OutsideOutdir, output_name
+
+    cases = {("a/../../../x.ply", False): "x.ply", ("h/a/../../../../etc/x.ply", True): "etc/x.ply",
+             ("%2e%2e/%2E%2e/x.ply", True): "x.ply", ("..%2f..%2fx.ply", True): "x.ply",
+             ("a\\..\\..\\x.ply", False): "x.ply", ("/abs/./x.ply", False): "abs/x.ply",
+             ("my%20scan.ply", True): "my scan.ply", ("my%20scan.ply", False): "my%20scan.ply",
+             ("-x.ply", False): "-x.ply", ("a//b/./c.ply", False): "a/b/c.ply"}
+    for (rel, url), want in cases.items():
+        assert output_name(rel, url=url) == want, rel
+    for rel, url in (("..", False), ("a/..", False), ("%2e%2e", True), ("x%00.ply", True), ("x\0.ply", False)):
+        with pytest.raises(OutsideOutdir):
+            output_name(rel, url=url)
+
+
+def test_confine_refuses_every_way_out(tmp_path):
+    from shapeflow.batch.paths import OutsideOutdir, confine
+
+    out = tmp_path / "out"
+    (out / "real").mkdir(parents=True)
+    (tmp_path / "elsewhere").mkdir()
+    (out / "link").symlink_to(tmp_path / "elsewhere")
+    (out / "inner").symlink_to(out / "real")
+    (out / "file.ply").symlink_to(tmp_path / "elsewhere" / "x.ply")
+    assert confine(str(out), str(out / "real" / "x.ply")) == str(out / "real" / "x.ply")
+    assert confine(str(out), str(out / "inner" / "x.ply"))          # a link that stays inside
+    for bad in (out / ".." / "x.ply", out / "link" / "x.ply", out / "file.ply", tmp_path / "x.ply",
+                str(out / "a\0b.ply"), out / ("n" * 256), out / "/".join(["d" * 200] * 21)):
+        with pytest.raises(OutsideOutdir):
+            confine(str(out), str(bad))
+
+
+def test_worker_progress_bars_stay_off_and_messages_name_the_output(tree, tmp_path, monkeypatch):
+    """A file runs with a stderr that is no terminal (the flow's own tqdm bar stays off), and what it
+    says names its output, never the work folder's stand-in."""
+    import sys
+
+    pytest.importorskip("tqdm")
+    written = []
+
+    class Terminal:
+        def isatty(self):
+            return True
+
+        def write(self, s):
+            written.append(s)
+            return len(s)
+
+        def flush(self):
+            pass
+
+    out = tmp_path / "o.obj"
+    monkeypatch.setattr(sys, "stderr", Terminal())
+    rec = process_file(str(tree / "a" / "x.obj"), str(out), "smooth -s 1 --iterations 5")
+    monkeypatch.undo()
+    assert rec["status"] == "done" and written == []
+    assert any(m.endswith(f"-> {out}") for m in rec["messages"]), rec["messages"]
+    (tmp_path / "dir.obj").mkdir()                       # an output that cannot be replaced by a file
+    rec = process_file(str(tree / "a" / "x.obj"), str(tmp_path / "dir.obj"), "smooth -s 1")
+    assert rec["status"] == "failed" and str(tmp_path / "dir.obj") in rec["error"], rec
+    assert ".shapeflow-batch-" not in rec["error"] + "".join(rec["messages"])

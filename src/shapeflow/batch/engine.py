@@ -18,76 +18,39 @@ import hashlib
 import itertools
 import os
 import shutil
-import sys
 import time
 from typing import Callable, Sequence
 
 from .. import params
-from ..errors import OptionalDependencyError, ParameterError
-from .inputs import plan_jobs
-from .manifest import Manifest, input_stamp
+from ..errors import ParameterError
+from .cluster import deferred_signals, distributed_module, local_cluster
+from .inputs import filesystem, is_url, plan
+from .manifest import MANIFEST_NAME, Manifest, input_stamp
 from .operation import Operation, parse_operation
+from .paths import OutsideOutdir, confine
+from .progress import Progress
 from .report import BatchReport
 from .task import WORK_PREFIX, ended_reason, failed_record, run_task
 
 __all__ = ["run", "local_cluster"]
 
-
-def _distributed():
-    try:
-        import distributed
-    except ImportError:
-        raise OptionalDependencyError("distributed", "batch", "shapeflow batch") from None
-    return distributed
+#: fsspec protocols whose files only this process sees: the driver reads them and sends the bytes
+PROCESS_LOCAL = ("memory",)
 
 
-def local_cluster(workers: int | None = None, *, max_memory: int | None = None, retries: int = 1,
-                  dashboard: bool = False):
-    """``(cluster, client)``: the local cluster :func:`run` starts, to reuse over several batches.
-
-    Worker processes (default: the cores this process may use), one thread each; a worker's
-    death is retried ``retries`` times; ``max_memory`` bytes per worker (the nanny ends a
-    worker 2% above it).  Close both when done (``client.close(); cluster.close()``).
-    """
-    import importlib.util
-    import logging
-
-    import dask
-
-    distributed = _distributed()
-    if workers is None:
-        from ..accel import usable_cores
-
-        workers = usable_cores()
-    cfg = {"distributed.scheduler.allowed-failures": retries,
-           "distributed.scheduler.worker-saturation": 1.0,
-           "distributed.worker.memory.target": False, "distributed.worker.memory.spill": False,
-           "distributed.worker.memory.pause": False,
-           "distributed.worker.memory.terminate": 0.98 if max_memory else False}
-    with dask.config.set(cfg):
-        cluster = distributed.LocalCluster(
-            n_workers=workers, threads_per_worker=1, processes=True,
-            # the file's own limit ends a worker at max_memory; the nanny's (2% above it) is the backstop
-            memory_limit=int(max_memory / 0.95) if max_memory else 0,
-            # a free port on this machine only (the scheduler's HTTP server runs even without a dashboard)
-            dashboard_address="127.0.0.1:0",
-            scheduler_kwargs={"dashboard": bool(dashboard and importlib.util.find_spec("bokeh"))},
-            silence_logs=logging.ERROR)
-    return cluster, distributed.Client(cluster)
-
-
-def _client(client, scheduler: str | None, workers: int | None, max_memory, retries: int, dashboard: bool):
+def _client(client, scheduler: str | None, workers: int | None, max_memory, retries: int, dashboard: bool,
+            log: str | None = None):
     """(client, things to close) for the run."""
     if client is not None:
         return client, []
-    distributed = _distributed()
+    distributed = distributed_module()
     if scheduler is not None:
         try:
             c = distributed.Client(scheduler, timeout="20s")
         except (OSError, TimeoutError, ValueError) as exc:
             raise ParameterError(f"--scheduler {scheduler!r}: cannot reach the scheduler ({exc})") from None
         return c, [c]
-    cluster, c = local_cluster(workers, max_memory=max_memory, retries=retries, dashboard=dashboard)
+    cluster, c = local_cluster(workers, max_memory=max_memory, retries=retries, dashboard=dashboard, log=log)
     return c, [c, cluster]
 
 
@@ -121,8 +84,9 @@ def _outcome(fut, job, marker: str) -> dict:
 def run(inputs: str | Sequence[str], outdir: str, operation: str | Sequence[str] | Operation, *,
         client=None, scheduler: str | None = None, workers: int | None = None, format: str | None = None,
         force: bool = False, timeout: float | None = None, max_memory: int | None = None, retries: int = 1,
-        progress: bool | None = None, dashboard: bool = True,
-        on_start: Callable[[dict], None] | None = None) -> BatchReport:
+        progress: bool | None = None, progress_interval: float = 10.0, dashboard: bool = True,
+        on_start: Callable[[dict], None] | None = None,
+        on_notice: Callable[[str], None] | None = None) -> BatchReport:
     """Run an operation on every file of INPUTS, writing results under OUTDIR; returns a report.
 
     Parameters
@@ -132,7 +96,8 @@ def run(inputs: str | Sequence[str], outdir: str, operation: str | Sequence[str]
         fsspec URLs of these (:mod:`shapeflow.batch.inputs`).
     outdir : str
         Where outputs go, mirroring the input tree; it also holds the manifest
-        ``shapeflow-batch.jsonl`` (:mod:`shapeflow.batch.manifest`).
+        ``shapeflow-batch.jsonl`` (:mod:`shapeflow.batch.manifest`).  Nothing is written
+        outside it (:mod:`shapeflow.batch.paths`); it is made only once INPUTS is found.
     operation : str or list of str
         A single-file command with its options, without input and output
         (``"enhance --strength 50"``), or several joined by ``--then``.
@@ -154,70 +119,181 @@ def run(inputs: str | Sequence[str], outdir: str, operation: str | Sequence[str]
     retries : int
         Further attempts after a file's worker died (local cluster; default 1).
     progress : bool, optional
-        A progress bar (tqdm) or, without tqdm, a line every 10%; default: on a terminal.
+        False: none.  Otherwise a tqdm bar when stderr is a terminal, else a line every
+        ``progress_interval`` seconds (:mod:`shapeflow.batch.progress`).
+    progress_interval : float
+        Seconds between two progress lines off a terminal (default 10).
     on_start : callable(dict), optional
         Called once the cluster runs, with ``files``, ``todo``, ``skipped``, ``workers`` and
         ``dashboard`` (its link or None).
+    on_notice : callable(str), optional
+        Called, before any file is processed, with each thing the run has to say: OUTDIR left
+        out of INPUTS, damaged manifest lines skipped, how many files done before are done
+        again and why.  They are also in ``report.notices``.
 
     Returns
     -------
     BatchReport
     """
     _check(workers, timeout, max_memory, retries)
+    params.number("progress_interval", progress_interval)
+    if not progress_interval > 0:
+        raise ParameterError(f"progress_interval must be > 0 seconds, got {progress_interval!r}")
     op = parse_operation(operation, fmt=format)
     outdir = os.fspath(outdir)
-    os.makedirs(outdir, exist_ok=True)
+    if not outdir or "\0" in outdir:
+        raise ParameterError(f"OUTDIR {outdir!r} is not a folder name")
     digest = op.digest(format)
     t0 = time.perf_counter()
-    with Manifest(outdir) as manifest:
-        out_abs = os.path.abspath(outdir) + os.sep
-        jobs = [j for j in plan_jobs(inputs, outdir, lambda ext: op.output_suffix(ext, format))
-                if not os.path.abspath(j.source).startswith(out_abs)]   # earlier outputs are no inputs
-        latest = {} if force else manifest.latest()
-        todo, skipped = [], []
-        for j in jobs:
-            r = latest.get(j.source)
-            if (r is not None and r.get("status") == "done" and r.get("params") == digest
-                    and r.get("output") == j.output and r.get("input_stamp") == input_stamp(j.source)
-                    and os.path.exists(j.output)):
-                skipped.append(j.source)
-            else:
-                todo.append(j)
-        report = BatchReport(skipped=skipped, manifest=manifest.path)
-        if not todo:
-            if on_start is not None:
-                on_start({"files": len(jobs), "todo": 0, "skipped": len(skipped), "workers": 0, "dashboard": None})
-            report.seconds = time.perf_counter() - t0
-            return report
-        c, owned = _client(client, scheduler, workers, max_memory, retries, dashboard)
+    report = BatchReport(manifest=os.path.join(outdir, MANIFEST_NAME))
+
+    def notice(text: str) -> None:
+        report.notices.append(text)
+        if on_notice is not None:
+            on_notice(text)
+
+    planned = plan(inputs, outdir, lambda ext: op.output_suffix(ext, format))   # nothing made before this
+    made = _make_folder(outdir)
+    try:
+        with Manifest(outdir) as manifest:
+            for text in planned.notices:
+                notice(text)
+            found: list[str] = []
+            latest = manifest.latest(found)
+            for text in found:
+                notice(text)
+            todo, skipped = _split_done(planned.jobs, latest, digest, force, notice)
+            report.skipped = skipped
+            _process(todo, planned.jobs, op, format, digest, timeout, max_memory, manifest, report,
+                     (client, scheduler, workers, retries, dashboard), (progress, progress_interval), on_start)
+    except BaseException:
+        if not report.records:
+            _unmake(outdir, made)
+        raise
+    report.seconds = time.perf_counter() - t0
+    return report
+
+
+def _make_folder(outdir: str) -> list[str]:
+    """Make OUTDIR (and missing parents); returns the folders made, deepest first."""
+    made = []
+    p = os.path.abspath(outdir)
+    while not os.path.lexists(p):
+        made.append(p)
+        p = os.path.dirname(p)
+    os.makedirs(outdir, exist_ok=True)
+    return made
+
+
+def _unmake(outdir: str, made: list[str]) -> None:
+    """A run that recorded nothing leaves nothing: its empty manifest, its own folder and the
+    folders it made go."""
+    path = os.path.join(outdir, MANIFEST_NAME)
+    with_state = os.path.join(outdir, ".shapeflow-batch")
+    try:
+        if os.path.isfile(path) and not os.path.islink(path) and os.path.getsize(path) == 0:
+            os.remove(path)
+    except OSError:
+        pass
+    if made and os.path.isdir(with_state) and not os.path.islink(with_state):
+        shutil.rmtree(with_state, ignore_errors=True)
+    for folder in made:
         try:
-            report.workers = sum(c.nthreads().values()) or (workers or 1)
-            report.dashboard = _dashboard(c, local=len(owned) == 2)
-            if on_start is not None:
-                on_start({"files": len(jobs), "todo": len(todo), "skipped": len(skipped),
-                          "workers": report.workers, "dashboard": report.dashboard})
-            _drive(c, todo, op, format, digest, timeout, max_memory, manifest, report, progress)
-        except KeyboardInterrupt:
-            report.interrupted = True
-        finally:
+            os.rmdir(folder)
+        except OSError:
+            break
+
+
+def _n(k: int) -> str:
+    return f"{k} file{'s' if k != 1 else ''} done before"
+
+
+def _split_done(jobs, latest: dict, digest: str, force: bool, notice) -> tuple[list, list]:
+    """(jobs to do, sources skipped as done before); says how many done before are done again."""
+    todo, skipped = [], []
+    changed = forced = other = 0
+    for j in jobs:
+        r = latest.get(j.source)
+        if r is None or r["status"] != "done" or j.error:
+            todo.append(j)
+        elif force:
+            forced += 1
+            todo.append(j)
+        elif r["params"] != digest:
+            changed += 1
+            todo.append(j)
+        elif r["output"] != j.output or r["input_stamp"] != input_stamp(j.source) or not os.path.exists(j.output):
+            other += 1
+            todo.append(j)
+        else:
+            skipped.append(j.source)
+    if forced:
+        notice(f"--force: {_n(forced)} will be done again")
+    if changed:
+        notice(f"parameters changed since the last run: {_n(changed)} will be done again")
+    if other:
+        notice(f"{_n(other)} will be done again: input changed or output missing")
+    return todo, skipped
+
+
+def _process(todo, jobs, op, fmt, digest, timeout, max_memory, manifest, report, where, show, on_start) -> None:
+    """Record the jobs that cannot run, run the rest on the cluster (started here when needed)."""
+    client, scheduler, workers, retries, dashboard = where
+    bad = [j for j in todo if j.error]
+    todo = [j for j in todo if not j.error]
+    info = {"files": len(jobs), "todo": len(todo) + len(bad), "skipped": len(report.skipped), "workers": 0,
+            "dashboard": None}
+    if not todo:
+        if on_start is not None:
+            on_start(info)
+        for j in bad:
+            _record(failed_record(j.source, j.output or None, j.error), j, digest, manifest, report)
+        return
+    log = confine(manifest.outdir, os.path.join(manifest.state, "workers.log"), "the workers' log")
+    c, owned = None, []
+    try:
+        with deferred_signals():
+            with open(log, "wb"):
+                pass
+            c, owned = _client(client, scheduler, workers, max_memory, retries, dashboard, log)
+        report.workers = sum(c.nthreads().values()) or (workers or 1)
+        report.dashboard = _dashboard(c, local=len(owned) == 2)
+        if on_start is not None:
+            on_start({**info, "workers": report.workers, "dashboard": report.dashboard})
+        for j in bad:
+            _record(failed_record(j.source, j.output or None, j.error), j, digest, manifest, report)
+        _drive(c, todo, op, fmt, digest, timeout, max_memory, manifest, report, show)
+    except KeyboardInterrupt:
+        report.interrupted = True
+    finally:
+        with deferred_signals():
             for thing in owned:
                 try:
                     thing.close()
                 except Exception:   # closing a cluster that already lost its workers: nothing to keep
                     pass
-            shutil.rmtree(os.path.join(manifest.state, "ended"), ignore_errors=True)
-            _sweep_work_folders(todo)
-    report.seconds = time.perf_counter() - t0
-    return report
+        shutil.rmtree(os.path.join(manifest.state, "ended"), ignore_errors=True)
+        _sweep_work_folders(todo, manifest.outdir)
 
 
-def _sweep_work_folders(jobs) -> None:
+def _record(rec: dict, job, digest: str, manifest, report, bar=None) -> None:
+    from .. import __version__
+
+    rec.update(params=digest, input_stamp=input_stamp(job.source), shapeflow=__version__,
+               finished=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"))
+    manifest.append(rec)
+    report.records.append(rec)
+    if bar is not None:
+        bar.update(rec)
+
+
+def _sweep_work_folders(jobs, outdir: str) -> None:
     """Remove the work folders a file's task leaves beside its output when its worker process ended
     mid-file (every task of this run is over, and OUTDIR's lock keeps other batches out)."""
     for folder in {os.path.dirname(os.path.abspath(j.output)) for j in jobs}:
         try:
-            names = os.listdir(folder)
-        except OSError:
+            names = os.listdir(confine(outdir, folder, "folder"))
+        except (OSError, OutsideOutdir):
             continue
         for name in names:
             if name.startswith(WORK_PREFIX):
@@ -236,13 +312,22 @@ def _dashboard(c, local: bool) -> str | None:
         return None
 
 
-def _drive(c, todo, op, fmt, digest, timeout, max_memory, manifest, report, progress) -> None:
+def _read_here(source: str) -> bytes | None:
+    """The bytes of a URL that only this process can read (``memory://``), else None."""
+    if not is_url(source) or source.split("://", 1)[0].lower() not in PROCESS_LOCAL:
+        return None
+    try:
+        fs, path = filesystem(source)
+        return fs.cat_file(path)
+    except Exception:    # the worker's own attempt says what is wrong with it
+        return None
+
+
+def _drive(c, todo, op, fmt, digest, timeout, max_memory, manifest, report, show) -> None:
     """Submit the files in a sliding window, record each as it finishes."""
     from distributed import as_completed
 
-    from .. import __version__
-
-    ended = os.path.join(manifest.state, "ended")
+    ended = confine(manifest.outdir, os.path.join(manifest.state, "ended"), "the batch's folder")
     os.makedirs(ended, exist_ok=True)
     window = max(32, 8 * report.workers)
     meta = {}
@@ -252,60 +337,22 @@ def _drive(c, todo, op, fmt, digest, timeout, max_memory, manifest, report, prog
         marker = os.path.join(ended, key + ".json")
         if os.path.exists(marker):
             os.remove(marker)
-        fut = c.submit(run_task, job.source, job.output, op, fmt, marker, timeout, max_memory,
-                       key=key, pure=False)
+        fut = c.submit(run_task, job.source, job.output, op, fmt, marker, timeout, max_memory, manifest.outdir,
+                       _read_here(job.source), key=key, pure=False)
         meta[fut.key] = (job, marker)
         return fut
 
     pending = iter(todo)
-    ac = as_completed([submit(j) for j in itertools.islice(pending, window)])
-    bar = _Progress(len(todo), progress)
+    bar = Progress(len(todo), show[0], show[1])
     try:
+        ac = as_completed([submit(j) for j in itertools.islice(pending, window)])
         for fut in ac:
             job, marker = meta.pop(fut.key)
             rec = _outcome(fut, job, marker)
             fut.release()
-            rec.update(params=digest, input_stamp=input_stamp(job.source), shapeflow=__version__,
-                       finished=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"))
-            manifest.append(rec)
-            report.records.append(rec)
-            bar.update(rec)
+            _record(rec, job, digest, manifest, report, bar)
             nxt = next(pending, None)
             if nxt is not None:
                 ac.add(submit(nxt))
     finally:
         bar.close()
-
-
-class _Progress:
-    """A tqdm bar (extra ``progress``) or, without it, a line on stderr every 10% of the files."""
-
-    def __init__(self, total: int, wanted: bool | None):
-        self.total, self.n, self.failed = total, 0, 0
-        self.bar = None
-        self.lines = False
-        tty = sys.stderr.isatty()
-        if wanted is False or (wanted is None and not tty):
-            return
-        try:
-            from tqdm import tqdm
-
-            self.bar = tqdm(total=total, unit="file", desc="batch", file=sys.stderr, dynamic_ncols=True)
-        except ImportError:
-            self.lines = True
-        self.t0 = time.perf_counter()
-
-    def update(self, rec: dict) -> None:
-        self.n += 1
-        self.failed += rec["status"] != "done"
-        if self.bar is not None:
-            self.bar.set_postfix(failed=self.failed, refresh=False)
-            self.bar.update(1)
-        elif self.lines and (self.n * 10 // self.total > (self.n - 1) * 10 // self.total or self.n == self.total):
-            rate = self.n / max(time.perf_counter() - self.t0, 1e-9)
-            print(f"batch: {self.n}/{self.total} files ({100 * self.n // self.total}%), {self.failed} failed, "
-                  f"{rate:.2f} files/s", file=sys.stderr)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()

@@ -20,17 +20,20 @@ entries) is kept under OUTDIR, with the output format's extension.
 from __future__ import annotations
 
 import csv
-import glob
+import fnmatch
+import heapq
 import io
 import os
 import posixpath
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Iterator, Sequence
+from urllib.parse import unquote
 
 from ..errors import ParameterError
 from ..io.registry import FORMATS
+from .paths import confine, output_name
 
-__all__ = ["Job", "expand_inputs", "filesystem", "is_url", "plan_jobs"]
+__all__ = ["Job", "Plan", "expand_inputs", "filesystem", "is_url", "plan", "plan_jobs"]
 
 #: file extensions a folder or a glob-free listing picks up (the formats shapeflow reads)
 MESH_EXTENSIONS = tuple(sorted(FORMATS))
@@ -45,16 +48,26 @@ class Job:
     source: str
     relative: str
     output: str
+    error: str | None = None     #: why there is no output path for it (it fails alone)
 
 
 def is_url(text: str) -> bool:
-    """``proto://...`` other than ``file://`` (which is read as a local path)."""
+    """``proto://...`` other than ``file://`` and ``local://`` (which are read as local paths)."""
     head, sep, _ = text.partition("://")
-    return bool(sep) and head.isidentifier() and head.lower() != "file"
+    return bool(sep) and head.isidentifier() and head.lower() not in ("file", "local")
 
 
 def _local(text: str) -> str:
-    return text[len("file://"):] if text.lower().startswith("file://") else text
+    """A local path from a path, a ``file://`` URL (percent-escapes decoded) or a ``local://`` one."""
+    low = text.lower()
+    if low.startswith("local://"):
+        return text[len("local://"):]
+    if not low.startswith("file://"):
+        return text
+    rest = text[len("file://"):]
+    if rest.lower().startswith("localhost/"):
+        rest = rest[len("localhost"):]
+    return unquote(rest)
 
 
 def filesystem(url: str):
@@ -85,15 +98,87 @@ def _is_mesh(name: str) -> bool:
     return os.path.splitext(name)[1].lower() in FORMATS
 
 
-def _expand_local(arg: str) -> tuple[list[str], str]:
+def _key(path: str):
+    """(device, inode) of what ``path`` leads to, or None."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return None
+    return st.st_dev, st.st_ino
+
+
+def _direct(path: str) -> bool:
+    """``path`` reaches its file through no symbolic link."""
+    return os.path.realpath(path) == os.path.abspath(path)
+
+
+def _walk(top: str, skip: Walk) -> Iterator[tuple[str, str]]:
+    """``(path, path relative to top)`` of every file under ``top``.  Symbolic links to folders are
+    followed, but each real folder is entered once (a loop of links ends there; folders reached
+    without a link come first); a folder in ``skip.folders`` (OUTDIR) is not entered."""
+    seen: set = set()
+    heap = [(False, "", top)]      # (reached through a link, relative path, path)
+    while heap:
+        link, rel, folder = heapq.heappop(heap)
+        key = _key(folder)
+        if key is None or key in seen:
+            continue
+        seen.add(key)
+        if key in skip.folders:
+            skip.hit = True
+            continue
+        try:
+            entries = list(os.scandir(folder))
+        except OSError:
+            continue
+        for e in entries:
+            if not skip.hidden and e.name.startswith("."):
+                continue
+            r = f"{rel}/{e.name}" if rel else e.name
+            try:
+                if e.is_dir():
+                    if skip.depth is None or r.count("/") + 1 < skip.depth:
+                        heapq.heappush(heap, (link or e.is_symlink(), r, e.path))
+                elif e.is_file():
+                    yield e.path, r
+            except OSError:
+                continue
+
+
+@dataclass
+class Walk:
+    """What a walk leaves out: OUTDIR's folder (``folders``), hidden names, depths past ``depth``."""
+
+    folders: frozenset = frozenset()
+    hidden: bool = True
+    depth: int | None = None
+    hit: bool = False
+
+
+def _match(segs: list[str], parts: list[str]) -> bool:
+    """``parts`` of a relative path against glob segments (``**``: any number of folders)."""
+    if not segs:
+        return not parts
+    if segs[0] == "**":
+        return any(_match(segs[1:], parts[k:]) for k in range(len(parts) + 1))
+    return (bool(parts) and fnmatch.fnmatchcase(parts[0], segs[0])
+            and (not parts[0].startswith(".") or segs[0].startswith(".")) and _match(segs[1:], parts[1:]))
+
+
+def _expand_local(arg: str, skip: Walk) -> tuple[list[str], str]:
     """(sources, root) of one local INPUTS string."""
     path = _local(arg)
     if any(c in path for c in GLOB_CHARS):
-        found = sorted(p for p in glob.glob(path, recursive=True) if os.path.isfile(p))
-        return found, _glob_root(path, os.sep) or "."
+        root = _glob_root(path, os.sep) or (os.sep if path.startswith(os.sep) else "")
+        segs = [s for s in path[len(root):].split(os.sep) if s not in ("", ".")]
+        if not os.path.isdir(root or "."):
+            raise ParameterError(f"INPUTS {arg!r}: no such file, folder or glob match")
+        walk = Walk(skip.folders, any(s.startswith(".") for s in segs), None if "**" in segs else len(segs))
+        found = sorted(os.path.normpath(p) for p, rel in _walk(root or ".", walk) if _match(segs, rel.split("/")))
+        skip.hit |= walk.hit
+        return found, root or "."
     if os.path.isdir(path):
-        found = sorted(os.path.join(d, f) for d, _, files in os.walk(path) for f in files if _is_mesh(f))
-        return found, path
+        return sorted(p for p, rel in _walk(path, skip) if _is_mesh(p)), path
     if os.path.isfile(path) and os.path.splitext(path)[1].lower() in MANIFEST_EXTENSIONS:
         with open(path, "rb") as f:
             entries = _manifest_entries(f.read(), path)
@@ -148,45 +233,99 @@ def _expand_url(arg: str) -> tuple[list[str], str]:
 
 
 def _relative(source: str, root: str) -> str:
+    """The source's path below its INPUTS root, as :func:`~shapeflow.batch.paths.output_name` makes it."""
     if is_url(source):
-        rel = source[len(root):].lstrip("/") if source.startswith(root) else source.split("://", 1)[1]
-        return rel
+        rel = source[len(root):] if source.startswith(root.rstrip("/") + "/") else source.split("://", 1)[1]
+        return output_name(rel.split("?", 1)[0].split("#", 1)[0], url=True)
     rel = os.path.relpath(source, root)
     if rel.startswith(".."):      # outside the root (a manifest entry elsewhere): keep its name only
         rel = os.path.basename(source)
-    return rel.replace(os.sep, "/")
+    return output_name(rel.replace(os.sep, "/"))
 
 
-def expand_inputs(inputs: str | Sequence[str]) -> list[tuple[str, str]]:
-    """``(source, relative path)`` of every file INPUTS names, in a stable order, no repeats."""
+@dataclass
+class Plan:
+    """The jobs of a batch, and what the planning has to say (OUTDIR left out of INPUTS)."""
+
+    jobs: list
+    notices: list
+
+
+def _inputs(inputs, outdir: str | None) -> tuple[list[tuple[str, str | Exception]], list[str]]:
+    """``([(source, relative path or the reason there is none)], notices)``; see :func:`plan_jobs`."""
     args = [inputs] if isinstance(inputs, (str, os.PathLike)) else list(inputs)
     if not args:
         raise ParameterError("INPUTS is empty")
-    out: dict[str, str] = {}
+    out_key = _key(outdir) if outdir is not None else None
+    real_out = os.path.realpath(outdir) if outdir is not None else None
+    skip = Walk(frozenset([out_key]) if out_key else frozenset())
+    notices = []
+    pairs: dict[str, str | Exception] = {}
+    by_key: dict = {}
     for arg in args:
         arg = os.fspath(arg)
-        sources, root = _expand_url(arg) if is_url(arg) else _expand_local(arg)
+        sources, root = _expand_url(arg) if is_url(arg) else _expand_local(arg, skip)
+        tree = not is_url(arg) and (os.path.isdir(_local(arg)) or any(c in _local(arg) for c in GLOB_CHARS))
+        if real_out is not None and tree and os.path.realpath(root) == real_out:
+            raise ParameterError(f"OUTDIR {outdir!r} is the INPUTS folder {root!r} itself: the outputs "
+                                 "would land among the inputs; choose another OUTDIR")
+        if real_out is not None and tree and real_out.startswith(os.path.realpath(root).rstrip(os.sep) + os.sep):
+            skip.hit = True
         for s in sources:
-            out.setdefault(s, _relative(s, root))
-    return list(out.items())
+            s = s if is_url(s) else _local(s)
+            if s in pairs:
+                continue
+            key = None if is_url(s) else _key(s)
+            if key is not None:            # one file reached twice (links): done once, by its real path
+                other = by_key.get(key)
+                if other is not None:
+                    if not _direct(s) or _direct(other):
+                        continue
+                    del pairs[other]
+                by_key[key] = s
+            try:
+                pairs[s] = _relative(s, root)
+            except ParameterError as exc:
+                pairs[s] = exc
+    if skip.hit:
+        notices.append(f"OUTDIR {outdir} is inside INPUTS: its files are not taken as inputs")
+    return list(pairs.items()), notices
 
 
-def output_name(relative: str, suffix: str | None) -> str:
+def expand_inputs(inputs: str | Sequence[str]) -> list[tuple[str, str]]:
+    """``(source, relative path)`` of every file INPUTS names, in a stable order, no repeats
+    (a file reached twice through symbolic links is listed once)."""
+    return [(s, r) for s, r in _inputs(inputs, None)[0] if isinstance(r, str)]
+
+
+def output_name_of(relative: str, suffix: str | None) -> str:
     """The output's path relative to OUTDIR: the input's, with ``suffix`` ('' for a folder)."""
     stem, ext = posixpath.splitext(relative)
     return stem + (ext if suffix is None else suffix)
 
 
-def plan_jobs(inputs, outdir: str, suffix_for) -> list[Job]:
-    """The jobs of a batch; ``suffix_for(input_suffix)`` gives the output's extension.
+def plan(inputs, outdir: str, suffix_for) -> Plan:
+    """The jobs of a batch and its notices; ``suffix_for(input_suffix)`` gives the output's extension.
 
-    Two inputs that would write the same output, or an output that is its own input, are
-    refused before any work.
+    OUTDIR's own files are never inputs (a notice says so when OUTDIR is inside INPUTS);
+    OUTDIR being an INPUTS folder itself, two inputs that would write the same output, or an
+    output that is its own input are refused before any work.  A source whose output cannot
+    be a path inside OUTDIR (:func:`~shapeflow.batch.paths.confine`) gets a job with its
+    ``error`` and fails alone.
     """
+    pairs, notices = _inputs(inputs, outdir)
     jobs: list[Job] = []
     seen: dict[str, str] = {}
-    for source, rel in expand_inputs(inputs):
-        out = os.path.join(outdir, *output_name(rel, suffix_for(posixpath.splitext(rel)[1])).split("/"))
+    for source, rel in pairs:
+        if isinstance(rel, Exception):
+            jobs.append(Job(source, "", "", str(rel)))
+            continue
+        out = os.path.join(outdir, *output_name_of(rel, suffix_for(posixpath.splitext(rel)[1])).split("/"))
+        try:
+            confine(outdir, out)
+        except ParameterError as exc:
+            jobs.append(Job(source, rel, out, str(exc)))
+            continue
         key = os.path.normcase(os.path.abspath(out))
         if key in seen:
             raise ParameterError(f"{seen[key]!r} and {source!r} would both write {out!r}; "
@@ -195,4 +334,9 @@ def plan_jobs(inputs, outdir: str, suffix_for) -> list[Job]:
             raise ParameterError(f"the output of {source!r} would overwrite it; choose another OUTDIR")
         seen[key] = source
         jobs.append(Job(source, rel, out))
-    return jobs
+    return Plan(jobs, notices)
+
+
+def plan_jobs(inputs, outdir: str, suffix_for) -> list[Job]:
+    """The jobs of :func:`plan` (``suffix_for(input_suffix)`` gives the output's extension)."""
+    return plan(inputs, outdir, suffix_for).jobs

@@ -14,9 +14,11 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from typing import Iterator
 
 from ..errors import ParameterError
+from .paths import confine
 
 __all__ = ["Manifest", "MANIFEST_NAME", "STATE_DIR"]
 
@@ -34,6 +36,50 @@ def input_stamp(source: str) -> list | None:
     return [st.st_size, st.st_mtime_ns]
 
 
+#: the fields a later run relies on, and the JSON types each may have
+_FIELDS = {"input": (str,), "output": (str, type(None)), "status": (str,), "params": (str, type(None)),
+           "input_stamp": (list, type(None))}
+_INPUT = re.compile(rb'^\s*\{\s*"input"\s*:\s*("(?:[^"\\]|\\.)*")')
+
+
+def _json_type(value) -> str:
+    for types, name in ((bool, "a boolean"), ((int, float), "a number"), (str, "a string"), (list, "an array"),
+                        (dict, "an object")):
+        if isinstance(value, types):
+            return name
+    return "null"
+
+
+def _wrong_field(rec) -> str | None:
+    """Why a parsed line is not a record (None when it is one)."""
+    if not isinstance(rec, dict):
+        return f"{_json_type(rec)}, not a record"
+    for name, types in _FIELDS.items():
+        if name not in rec:
+            return f"no {name!r}"
+        if not isinstance(rec[name], types) or isinstance(rec[name], bool):
+            return f"{name!r} is {_json_type(rec[name])}"
+    if rec["status"] not in ("done", "failed"):
+        return f"'status' is {rec['status']!r}, not 'done' or 'failed'"
+    stamp = rec["input_stamp"]
+    if stamp is not None and (len(stamp) != 2 or not all(type(v) is int for v in stamp)):
+        return "'input_stamp' is not [size, mtime]"
+    return None
+
+
+def _input_of(rec, raw: bytes) -> str | None:
+    """The input a damaged line was about, when it can be told."""
+    if isinstance(rec, dict) and isinstance(rec.get("input"), str):
+        return rec["input"]
+    m = _INPUT.match(raw)
+    if m is None:
+        return None
+    try:
+        return json.loads(m.group(1).decode("utf-8"))
+    except ValueError:
+        return None
+
+
 class Manifest:
     """Append-only JSON Lines records of one OUTDIR, with its lock (one batch at a time)."""
 
@@ -44,32 +90,48 @@ class Manifest:
         self._file = None
         self._lock = None
 
-    def records(self) -> Iterator[dict]:
-        """Every record so far; a line cut short by an interruption is skipped."""
+    def records(self, problems: list | None = None) -> Iterator[dict]:
+        """Every whole record so far.  A line cut short (anywhere, even inside a UTF-8 character),
+        not JSON, or whose fields have the wrong types is skipped; ``problems`` gets
+        ``(line number, reason, input or None)`` for each."""
         try:
-            f = open(self.path, encoding="utf-8")
+            with open(self.path, "rb") as f:
+                data = f.read()
         except FileNotFoundError:
             return
-        with f:
-            for line in f:
-                try:
-                    rec = json.loads(line)
-                except ValueError:
-                    continue
-                if isinstance(rec, dict) and "input" in rec:
-                    yield rec
+        for n, raw in enumerate(data.split(b"\n"), 1):
+            if not raw.strip():
+                continue
+            try:
+                rec = json.loads(raw.decode("utf-8"))
+            except ValueError:             # UnicodeDecodeError included
+                reason, rec = "cut short or not JSON", None
+            else:
+                reason = _wrong_field(rec)
+            if reason is None:
+                yield rec
+            elif problems is not None:
+                problems.append((n, reason, _input_of(rec, raw)))
 
-    def latest(self) -> dict[str, dict]:
-        """The last record of every input."""
-        out = {}
-        for rec in self.records():
+    def latest(self, notices: list | None = None) -> dict[str, dict]:
+        """The last record of every input.  An input with a damaged line has none, so its file is
+        done again; ``notices`` gets one line per damaged line, saying so."""
+        out, problems = {}, []
+        for rec in self.records(problems):
             out[rec["input"]] = rec
+        for n, reason, source in problems:
+            if source is not None:
+                out.pop(source, None)
+            if notices is not None:
+                again = f"{source} is done again" if source is not None else "its file, if any, is done again"
+                notices.append(f"manifest {self.path} line {n}: {reason}; skipped ({again})")
         return out
 
     def open(self) -> "Manifest":
         """Take OUTDIR's lock and open the manifest for appending."""
-        os.makedirs(self.state, exist_ok=True)
-        lock_path = os.path.join(self.state, "lock")
+        confine(self.outdir, self.path, "the manifest")
+        os.makedirs(confine(self.outdir, self.state, "the batch's folder"), exist_ok=True)
+        lock_path = confine(self.outdir, os.path.join(self.state, "lock"), "the batch's lock")
         self._lock = open(lock_path, "a+")
         try:
             import fcntl

@@ -67,7 +67,12 @@ class Operation:
             extra.append("--force")       # members of an interrupted earlier run are redone
             if fmt and "--format" not in opts:
                 extra += ["--format", fmt.lstrip(".").lower()]
-        return [cmd, *opts, *extra, source, output]
+        return [cmd, *opts, *extra, _positional(source), _positional(output)]
+
+
+def _positional(path: str) -> str:
+    """A path as a positional argument: one starting with '-' would be read as an option."""
+    return os.path.join(os.curdir, path) if path.startswith("-") else path
 
 
 def _split(tokens: list[str]) -> list[list[str]]:

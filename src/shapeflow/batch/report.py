@@ -23,6 +23,7 @@ class BatchReport:
     manifest: str = ""
     dashboard: str | None = None
     interrupted: bool = False
+    notices: list = field(default_factory=list)   #: what the run said before processing (see ``run``)
 
     @property
     def done(self) -> list:

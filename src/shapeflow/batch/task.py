@@ -19,8 +19,10 @@ which is process-wide, so two calls in threads of one process would mix their wa
 from __future__ import annotations
 
 import contextlib
+import io
 import json
 import os
+import posixpath
 import shutil
 import tempfile
 import threading
@@ -29,10 +31,11 @@ import warnings
 from typing import Callable
 
 from .. import accel
-from ..errors import OptionalDependencyError, ShapeflowError
+from ..errors import MeshError, OptionalDependencyError, ShapeflowError
 from .estimate import estimate_peak_bytes, header_vertices
 from .inputs import is_url
 from .operation import Operation, parse_operation, run_steps
+from .paths import NAME_MAX, confine
 
 __all__ = ["process_file", "run_task", "jsonable", "failed_record", "ended_reason", "WORK_PREFIX"]
 
@@ -101,13 +104,28 @@ def jsonable(obj):
     return obj
 
 
-def _fetch(url: str, directory: str) -> str:
+def _fetch(url: str, directory: str, data: bytes | None = None) -> str:
+    """The input, downloaded (or ``data`` written) into a folder of its own inside the work folder."""
     from .inputs import filesystem
 
+    folder = os.path.join(directory, "input")
+    os.mkdir(folder)
+    name = posixpath.basename(url.split("://", 1)[-1].split("?", 1)[0].rstrip("/")) or "input"
+    local = os.path.join(folder, name if "\0" not in name and len(os.fsencode(name)) <= NAME_MAX else "input")
+    if data is not None:
+        with open(local, "wb") as f:
+            f.write(data)
+        return local
     fs, path = filesystem(url)
-    local = os.path.join(directory, os.path.basename(path.rstrip("/")) or "input")
     fs.get_file(path, local)
     return local
+
+
+class _NoTerminal(io.StringIO):
+    """stderr while a file runs: the commands' own progress bars see no terminal and stay off."""
+
+    def isatty(self) -> bool:
+        return False
 
 
 def _error_text(exc: BaseException) -> str:
@@ -126,7 +144,7 @@ def _error_text(exc: BaseException) -> str:
 
 def process_file(source: str, output: str, operation: str | list | Operation, *, format: str | None = None,
                  max_memory: int | None = None, threads: int | str = 1,
-                 sampler: RssSampler | None = None) -> dict:
+                 sampler: RssSampler | None = None, outdir: str | None = None, data: bytes | None = None) -> dict:
     """Run a batch operation on one file and write its output atomically; returns its record.
 
     Parameters
@@ -144,6 +162,13 @@ def process_file(source: str, output: str, operation: str | list | Operation, *,
         at once with the estimate.
     threads : int or "auto"
         Threads of shapeflow's compiled kernels (1: one file per core, no oversubscription).
+    outdir : str, optional
+        The output and everything made for it (its folder, the work folder) must lie inside
+        this folder (:func:`shapeflow.batch.paths.confine`), or the file fails before anything
+        is written.
+    data : bytes, optional
+        The source's bytes, read by the caller (a URL of a filesystem this process cannot see,
+        such as ``memory://``); ``source`` then only names it.
 
     Returns
     -------
@@ -151,34 +176,53 @@ def process_file(source: str, output: str, operation: str | list | Operation, *,
         ``input``, ``output``, ``status`` ("done" or "failed"), ``error``, ``seconds``,
         ``peak_rss`` (bytes, this process's peak resident memory while the file ran),
         ``vertices``, ``faces``, ``report`` (the flow or family report) and ``messages``
-        (what the command would have printed, warnings included).
+        (what the command would have printed, warnings included).  Messages and errors name
+        ``source`` and ``output``, never the work folder's files.
     """
     op = operation if isinstance(operation, Operation) else parse_operation(operation, fmt=format)
     t0 = time.perf_counter()
     rec = failed_record(source, output)
-    parent = os.path.dirname(os.path.abspath(output))
-    os.makedirs(parent, exist_ok=True)
-    work = tempfile.mkdtemp(prefix=WORK_PREFIX, dir=parent)
     own = sampler is None
     sampler = sampler or RssSampler()
+    names: dict[str, str] = {}
+    work = None
     try:
-        with (sampler if own else contextlib.nullcontext()):
-            _run_one(op, source, output, work, format, max_memory, threads, rec)
+        parent = os.path.dirname(os.path.abspath(output))
+        if outdir is not None:
+            confine(outdir, output)
+        os.makedirs(parent, exist_ok=True)
+        work = tempfile.mkdtemp(prefix=WORK_PREFIX, dir=parent)
+        if outdir is not None:
+            confine(outdir, work, "work folder")
+        with (sampler if own else contextlib.nullcontext()), contextlib.redirect_stderr(_NoTerminal()):
+            _run_one(op, source, output, work, format, max_memory, threads, rec, names, data)
     except BaseException as exc:   # a file's failure is its record; Ctrl-C and exits still end the run
-        rec["error"] = _error_text(exc).replace(work + os.sep, "")
+        rec["error"] = _final_names(_error_text(exc), names, work)
         if not isinstance(exc, Exception):
             raise
     finally:
-        shutil.rmtree(work, ignore_errors=True)
+        if work is not None:
+            shutil.rmtree(work, ignore_errors=True)
         rec["seconds"] = time.perf_counter() - t0
         rec["peak_rss"] = sampler.peak
     return rec
 
 
-def _run_one(op: Operation, source: str, output: str, work: str, fmt, max_memory, threads, rec: dict) -> None:
+def _final_names(text: str, names: dict[str, str], work: str | None) -> str:
+    """``text`` naming the source and the output where it named their stand-ins in the work folder."""
+    for temp, final in sorted(names.items(), key=lambda kv: -len(kv[0])):
+        text = text.replace(temp, final)
+    return text.replace(work + os.sep, "") if work else text
+
+
+def _run_one(op: Operation, source: str, output: str, work: str, fmt, max_memory, threads, rec: dict,
+             names: dict[str, str], data: bytes | None) -> None:
     from ..cli.common import collecting
 
-    local = _fetch(source, work) if is_url(source) else source
+    if "\0" in source:
+        raise MeshError(f"{source!r}: a file name cannot hold a NUL character")
+    local = _fetch(source, work, data) if is_url(source) or data is not None else source
+    names[local] = source
     if not os.path.exists(local):
         raise FileNotFoundError(2, "No such file or directory", source)
     if max_memory is not None:
@@ -190,23 +234,23 @@ def _run_one(op: Operation, source: str, output: str, work: str, fmt, max_memory
                             f"is over --max-memory {max_memory / 2**30:.2f} GiB")
             return
     final = os.path.join(work, os.path.basename(output.rstrip(os.sep)))
+    names[final] = output
     with collecting() as said, warnings.catch_warnings(record=True) as caught, accel.use(threads=threads):
         warnings.simplefilter("always")
         try:
             run_steps(op, local, final, work, fmt)
         finally:
-            rec["messages"] = [m.replace(work + os.sep, "") for m in said.messages]
-            rec["messages"] += [f"warning: {w.message}" for w in caught]
+            rec["messages"] = [_final_names(m, names, work) for m in said.messages]
+            rec["messages"] += [_final_names(f"warning: {w.message}", names, work) for w in caught]
             rec["vertices"] = said.facts.get("vertices")
             rec["faces"] = said.facts.get("faces")
             rep = said.facts.get("report", said.facts.get("reports"))
             rec["report"] = jsonable(rep) if rep is not None else None
-    if os.path.isdir(final):
-        if os.path.isdir(output):
-            shutil.rmtree(output)
-        os.replace(final, output)
-    else:
-        os.replace(final, output)
+    if os.path.islink(output):
+        os.remove(output)              # a link in OUTDIR is replaced, never followed
+    elif os.path.isdir(final) and os.path.isdir(output):
+        shutil.rmtree(output)
+    os.replace(final, output)
     rec["status"] = "done"
 
 
@@ -239,7 +283,8 @@ def _die(marker: str, reason: str) -> None:
 
 
 def run_task(source: str, output: str, op: Operation, fmt: str | None, marker: str,
-             timeout: float | None = None, max_memory: int | None = None) -> dict:
+             timeout: float | None = None, max_memory: int | None = None, outdir: str | None = None,
+             data: bytes | None = None) -> dict:
     """The Dask task of one file: :func:`process_file` with the per-file limits enforced.
 
     A file still running after ``timeout`` seconds, or whose process passes ``max_memory``
@@ -263,7 +308,7 @@ def run_task(source: str, output: str, op: Operation, fmt: str | None, marker: s
     try:
         with sampler:
             return process_file(source, output, op, format=fmt, max_memory=max_memory, threads=1,
-                                sampler=sampler)
+                                sampler=sampler, outdir=outdir, data=data)
     finally:
         if timer is not None:
             timer.cancel()

@@ -55,6 +55,8 @@ def register(sub) -> None:
                    help="memory a worker may use for one file, e.g. 4G: a file estimated or found over it fails")
     p.add_argument("--retries", type=int, default=1, metavar="N",
                    help="attempts after a file's worker died (default 1; local cluster)")
+    p.add_argument("--progress-interval", type=float, default=10.0, metavar="SECONDS",
+                   help="seconds between two progress lines when stderr is not a terminal (default 10)")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress or summary (the manifest has it all)")
     p.set_defaults(func=run)
 
@@ -72,6 +74,10 @@ def run(args) -> int:
     for name in ("distributed", "tornado"):
         logging.getLogger(name).setLevel(logging.CRITICAL)
 
+    def notice(text):
+        if not args.quiet:
+            eprint(f"shapeflow batch: {text}")
+
     def started(info):
         if args.quiet:
             return
@@ -81,7 +87,8 @@ def run(args) -> int:
 
     report = run_batch(args.inputs, args.outdir, args.operation, scheduler=args.scheduler, workers=args.workers,
                        format=args.format, force=args.force, timeout=args.timeout, max_memory=max_memory,
-                       retries=args.retries, progress=False if args.quiet else None, on_start=started)
+                       retries=args.retries, progress=False if args.quiet else None,
+                       progress_interval=args.progress_interval, on_start=started, on_notice=notice)
     if not args.quiet:
         for line in report.summary().splitlines():
             eprint(f"shapeflow batch: {line}")
