@@ -52,7 +52,7 @@ def _agree(mesh, lams, **opts):
 
 # --- agreement with flow() on the shared meshes -----------------------------------
 
-SHARED = ["spot_quad", "suzanne_hybrid_open", "penguin_control_hybrid", "camelhead_tri_open"]
+SHARED = ["spot_quad", "rook_cage_hybrid_open", "penguin_control_hybrid", "plane_holes_tri_open"]
 
 
 @requires_shared
@@ -173,7 +173,7 @@ def test_unchanged_path(opts, why):
     ({"strategy": "separate"}, "strategy='separate'"),
 ])
 def test_fallback_paths(opts, reason):
-    mesh = sf.load(MESHES / "suzanne_hybrid_open.obj")
+    mesh = sf.load(MESHES / "rook_cage_hybrid_open.obj")
     strategy = opts.pop("strategy", "auto")
     shapes, report = sf.family(mesh, [0.0, -5.0, 20.0, -60.0], lam_border=1.0, return_report=True,
                                strategy=strategy, **opts)
@@ -187,7 +187,7 @@ def test_fallback_paths(opts, reason):
 @requires_shared
 def test_area_normalized_needs_direct_solves():
     """Eq. 9 on a model of size ~1 is badly conditioned: no shared CG, flow()'s direct solver per λ."""
-    mesh = sf.load(MESHES / "camelhead_tri_open.obj")
+    mesh = sf.load(MESHES / "spot_tri.obj")
     report, _ = _agree(mesh, [-5.0, -30.0], normalized=False)
     assert report.path == "separate" and "CG iterations" in report.reason
 

@@ -203,7 +203,7 @@ def warm_up_brush() -> float:
     u, v = np.meshgrid(np.linspace(0, 2 * np.pi, k, endpoint=False), np.linspace(0.2, np.pi - 0.2, k))
     P = np.stack([np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v)], -1).reshape(-1, 3)
     idx = np.arange(k * k).reshape(k, k)
-    quads = np.stack([idx[:-1, :-1], idx[:-1, np.r_[1:k, 0]], idx[1:, np.r_[1:k, 0]], idx[1:, :-1]], -1)
+    quads = np.stack([idx[:-1], idx[:-1, np.r_[1:k, 0]], idx[1:, np.r_[1:k, 0]], idx[1:]], -1)   # rings, wrapped
     b = Brush(Mesh(P, quads.reshape(-1, 4)), lam=-5.0, radius=0.8)
     b.dab(P[k * k // 2])
     return time.perf_counter() - t0
