@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import need
 
 import shapeflow as sf
 from shapeflow.cli import main
@@ -84,7 +85,7 @@ def test_named_views_face_the_model_by_the_file_convention():
 
 def test_the_default_picture_of_spot_shows_its_face(tmp_path):
     """Spot's head lies towards -z: the command's default view is the library's view from -z."""
-    pytest.importorskip("vtk")
+    need("vtk", "VTK (the 'render' extra)")
     from shapeflow.rendering import available, render
 
     if not available():

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import need
 from meshgen import cube_sphere, grid
 
 import shapeflow as sf
@@ -363,7 +364,7 @@ def test_image_up_axis_option(tmp_path, capsys):
 
 
 def test_rendering_changes_no_process_wide_state(tmp_path):
-    pytest.importorskip("vtk")
+    need("vtk", "VTK (the 'render' extra)")
     import os
 
     from vtkmodules.vtkCommonCore import vtkObject

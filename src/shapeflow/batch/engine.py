@@ -36,8 +36,8 @@ __all__ = ["run", "local_cluster"]
 def _distributed():
     try:
         import distributed
-    except ImportError:
-        raise OptionalDependencyError("distributed", "batch", "shapeflow batch") from None
+    except Exception as exc:   # not installed, or installed and broken
+        raise OptionalDependencyError("distributed", "batch", "shapeflow batch", exc) from None
     return distributed
 
 

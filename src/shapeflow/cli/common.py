@@ -151,7 +151,7 @@ class progress_callback:
             return None
         try:
             from tqdm import tqdm
-        except ImportError:
+        except Exception:   # noqa: BLE001 - no bars without a working tqdm
             return None
         self.bar = tqdm(total=self.total, desc=self.desc, unit="it", file=sys.stderr, leave=False)
 

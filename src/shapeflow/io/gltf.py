@@ -37,8 +37,8 @@ TRIANGLES = 4
 def _lib():
     try:
         import pygltflib
-    except ImportError as exc:
-        raise OptionalDependencyError("pygltflib", "gltf", "reading and writing glTF") from exc
+    except Exception as exc:   # not installed, or installed and broken
+        raise OptionalDependencyError("pygltflib", "gltf", "reading and writing glTF", exc) from exc
     return pygltflib
 
 

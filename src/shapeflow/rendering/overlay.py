@@ -21,7 +21,7 @@ def load_font(size: int):
 
             cand = os.path.join(matplotlib.get_data_path(), "fonts", "ttf", "DejaVuSans.ttf")
             path = cand if os.path.exists(cand) else None
-        except ImportError:
+        except Exception:   # noqa: BLE001 - no matplotlib, or a broken one: Pillow's own font
             pass
         _FONT_PATH.append(path)
     if _FONT_PATH[0]:
