@@ -373,7 +373,7 @@ def test_cli_writes_the_family(tmp_path, capsys):
     assert rc == 0
     names = sorted(p.name for p in out.iterdir())
     assert names == [f"penguin_control_hybrid_{i}_lam{v}.obj"
-                     for i, v in enumerate(["+000.0", "-005.0", "-010.0", "-015.0"])]
+                     for i, v in enumerate(["+000.0", "-005.0", "-010.0", "-015.0", "-020.0"])]
     mesh = sf.load(src)
     got = sf.load(out / names[2])
     assert np.abs(got.vertices - sf.flow(mesh, -10.0).vertices).max() <= 1e-6 * mesh.diagonal
@@ -383,7 +383,7 @@ def test_cli_writes_the_family(tmp_path, capsys):
     rc = main(["family", str(src), str(out), "--to", "-20", "--step", "-5", "--force"])
     assert rc == 0
     err = capsys.readouterr().err
-    assert "4 members" in err and "multi-shift" in err
+    assert "5 members" in err and "multi-shift" in err
 
 
 def test_cli_lambdas_options_and_errors(tmp_path, capsys):

@@ -57,6 +57,8 @@ def register(sub) -> None:
     p.add_argument("--force", action="store_true",
                    help="allow OUTPUT to be the input file, or a read-only file (overwrite it)")
     p.add_argument("--quiet", "-q", action="store_true", help="no summary on stderr")
+    p.add_argument("--strict", action="store_true",
+                   help="a stroke that moves no vertex is an error (exit 2, nothing written) instead of a warning")
     add_image_options(p)
     p.set_defaults(func=run)
 
@@ -175,6 +177,11 @@ def run(args) -> int:
     if operand is not mesh:    # welded: count the input's vertices (every copy of a moved vertex moved)
         moved = np.flatnonzero(np.isin(operand.weld_map, moved))
     t2 = time.perf_counter()
+    if moved.size == 0:
+        why = f"the stroke moved no vertex: {why_nothing_moved(operand, stroke, centers, weights)}"
+        if args.strict:
+            raise ParameterError(f"{why} (--strict)")
+        eprint(f"shapeflow brush: warning: {why}; the output is the input")
     result = restore(brush.mesh)
     save_mesh(out_path, result, args.force)
     if args.image:
@@ -190,6 +197,26 @@ def run(args) -> int:
                + f"set-up {t1 - t0:.3f} s, "
                f"dabs {t2 - t1:.3f} s ({1e3 * (t2 - t1) / max(n, 1):.2f} ms/dab) -> {out_path}")
     return 0
+
+
+def why_nothing_moved(mesh, stroke: dict, centers, weights) -> str:
+    """Why a stroke left every vertex where it was, in the stroke file's terms."""
+    from scipy.spatial import cKDTree
+
+    r = stroke["radius"]
+    if len(centers) == 0:
+        return "it has no dab"
+    dist, nearest = cKDTree(mesh.vertices).query(np.asarray(centers, dtype=np.float64))
+    if dist.min() > r:
+        return (f"no vertex lies within \"radius\" {r:g} of its {len(centers)} dab(s) (the nearest is "
+                f"{dist.min():.4g} away; the mesh's bounding-box diagonal is {mesh.diagonal:.4g})")
+    if stroke["brush"] == "enhance" and stroke["lambda"] == 0:
+        return "\"lambda\" is 0"
+    if stroke["brush"] == "inflate" and stroke["strength"] == 0:
+        return "\"strength\" is 0"
+    if weights is not None:
+        return "the vertices under it have weight 0 (--weights)"
+    return "the vertices under it are held (a boundary with \"lambda_border\" 0, or a flat patch)"
 
 
 def warm_up_brush() -> float:
