@@ -27,8 +27,9 @@ from ..errors import DataLossWarning, OptionalDependencyError, ParameterError, S
 COMMANDS = ["info", "flow", "subdivide", "family", "brush", "render", "curvature", "batch", "studio"]
 
 
-#: numbers written as option values, negative ones included (-5, -1e3, -.5, -inf): values, not options
-_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.IGNORECASE)
+_NUM = r"(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?|inf|infinity|nan"
+#: numbers written as option values, negative ones included (-5, -1e3, -.5, -inf, -90,10): values, not options
+_NUMBER = re.compile(rf"^-({_NUM})(,\s*[-+]?({_NUM}))*$", re.IGNORECASE)
 #: the parser that parses now (the subcommand's once it has begun): errors are told in its name
 _ACTIVE: contextvars.ContextVar = contextvars.ContextVar("shapeflow_cli_parser", default=None)
 

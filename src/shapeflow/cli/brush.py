@@ -46,7 +46,7 @@ def register(sub) -> None:
         'optional "spacing" (fraction of the radius, default 0.25), "falloff" (null or "smooth"), '
         '"lambda_border", "brush" ("enhance" or "inflate") and "strength" (inflate).',
     )
-    p.add_argument("input", metavar="IN", help="mesh file (OBJ/PLY/OFF) or example:NAME")
+    p.add_argument("input", metavar="IN", help="mesh file (OBJ, PLY, OFF, STL, glTF/GLB, USD) or example:NAME")
     p.add_argument("output", metavar="OUT", help="where to write the result (format from the extension)")
     p.add_argument("--stroke", required=True, metavar="JSON", help="stroke file (see above)")
     p.add_argument("--weights", metavar="FILE_OR_ATTRIBUTE",

@@ -23,7 +23,7 @@ from .images import add_image_options
 
 
 def add_flow_options(p) -> None:
-    p.add_argument("input", help="mesh file (OBJ/PLY/OFF) or example:NAME")
+    p.add_argument("input", help="mesh file (OBJ, PLY, OFF, STL, glTF/GLB, USD) or example:NAME")
     p.add_argument("output", help="where to write the result (format from the extension)")
     p.add_argument("--lambda-border", type=float, default=0.0, metavar="B",
                    help="λ_b for boundary vertices of open meshes, own sign (default 0: boundary fixed)")
