@@ -1,42 +1,39 @@
-"""Shared test fixtures: where the shared meshes and Blender fixtures live."""
+"""Shared test fixtures: the test data in tests/data, optional dependencies, a temporary folder per test.
+
+The meshes and Blender reference outputs the tests read are in the repository (tests/data,
+provenance and licences in tests/data/SOURCES.md), so a fresh clone runs every test that needs
+nothing beyond what ``pip install -e ".[all,test]"`` installs.
+"""
 
 from __future__ import annotations
 
+import importlib
 import json
 import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "tests" / "data"
+MESHES = DATA / "meshes"               # third-party meshes that may be redistributed (SOURCES.md)
+FIXTURES = DATA / "blender"            # Blender 5.0.1's outputs on our inputs (SOURCES.md)
 
-
-def _find_shared() -> Path | None:
-    env = os.environ.get("SHAPEFLOW_SHARED")
-    cands = [Path(env)] if env else []
-    cands += [ROOT.parent / "shared", ROOT / "shared"]
-    for c in cands:
-        if (c / "meshes").is_dir():
-            return c
-    return None
-
-
-SHARED = _find_shared()
-MESHES = SHARED / "meshes" if SHARED else None
-FIXTURES = SHARED / "fixtures" / "blender" if SHARED else None
-
-requires_shared = pytest.mark.skipif(SHARED is None,
-                                     reason="shared/ (meshes and Blender fixtures) not found beside the repo")
+requires_data = pytest.mark.skipif(not (MESHES / "spot_tri.obj").is_file(),
+                                   reason="tests/data is missing (a partial checkout?)")
+#: the name the tests used when the meshes lived beside the repository; the same mark
+requires_shared = requires_data
 
 
 def shared_mesh_paths() -> list[Path]:
-    return sorted(MESHES.glob("*.obj")) if MESHES else []
+    """Every bundled test mesh (tests/data/meshes/*.obj), sorted by name."""
+    return sorted(MESHES.glob("*.obj"))
 
 
 def fixture_cases(kind_prefix: str = "") -> list[str]:
-    if FIXTURES is None:
-        return []
+    """The bundled Blender reference cases whose name starts with ``kind_prefix``."""
     cases = json.loads((FIXTURES / "cases.json").read_text())["cases"]
     return sorted(k for k in cases if k.startswith(kind_prefix))
 
@@ -54,6 +51,54 @@ def load_fixture_case(case: str) -> dict:
     out["params"] = json.loads(str(out["params"]))
     out["mesh"] = str(out["mesh"])
     return out
+
+
+# --------------------------------------------------------------------------
+# optional dependencies
+# --------------------------------------------------------------------------
+
+def import_failure(module: str, what: str | None = None) -> str | None:
+    """None when ``module`` imports; else why not, in one line naming the cause.
+
+    Any exception counts, not only ModuleNotFoundError: a package that is installed but cannot
+    load (open3d without the system's libusb-1.0.so.0 raises ImportError or OSError) is named
+    with the original error."""
+    what = what or module
+    try:
+        importlib.import_module(module)
+    except ModuleNotFoundError as exc:
+        if exc.name and module.split(".")[0] == exc.name.split(".")[0]:
+            return f"{what} is not installed"
+        return f"{what} cannot be imported: {type(exc).__name__}: {exc}"
+    except Exception as exc:       # noqa: BLE001 - a broken install or a missing system library
+        return f"{what} cannot be imported: {type(exc).__name__}: {exc}"
+    return None
+
+
+def need(module: str, what: str | None = None):
+    """The module, or skip the test (or the whole module, at import time) naming why it is not there.
+
+    The replacement of ``pytest.importorskip`` for optional dependencies: ``o3d = need("open3d")``.
+    ``what`` describes the dependency in the reason (default: the module's name)."""
+    why = import_failure(module, what)
+    if why is not None:
+        pytest.skip(why, allow_module_level=True)
+    return importlib.import_module(module)
+
+
+# --------------------------------------------------------------------------
+# hermetic tests: every test has its own temporary folder
+# --------------------------------------------------------------------------
+
+@pytest.fixture(autouse=True)
+def own_temporary_folder(tmp_path_factory, monkeypatch):
+    """TMPDIR (TEMP, TMP) and :data:`tempfile.tempdir` point at a folder of this test's own, for the
+    test and everything it starts; both are restored afterwards.  What a test finds there, it made."""
+    folder = tmp_path_factory.mktemp("tmp")
+    for var in ("TMPDIR", "TEMP", "TMP"):
+        monkeypatch.setenv(var, str(folder))
+    monkeypatch.setattr(tempfile, "tempdir", str(folder))
+    yield folder
 
 
 # --------------------------------------------------------------------------

@@ -6,13 +6,14 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import need
 
 import shapeflow as sf
 from shapeflow.errors import DataLossWarning
 
-trimesh = pytest.importorskip("trimesh", reason="trimesh (a test dependency) is not installed")
-pv = pytest.importorskip("pyvista", reason="pyvista (a test dependency) is not installed")
-meshio = pytest.importorskip("meshio", reason="meshio (a test dependency) is not installed")
+trimesh = need("trimesh", "trimesh (a test dependency)")
+pv = need("pyvista", "pyvista (a test dependency)")
+meshio = need("meshio", "meshio (a test dependency)")
 
 
 @pytest.fixture
@@ -92,7 +93,7 @@ def test_a_cli_like_trip_through_files_keeps_the_library_objects_honest(tmp_path
 def test_open3d_round_trip_with_colours(spot):
     """A real open3d TriangleMesh: built by to_open3d, passed to every call as it is, read back;
     open3d's own surface area checks the triangles it holds."""
-    o3d = pytest.importorskip("open3d", reason="open3d (a test dependency on Linux x86-64) is not installed")
+    o3d = need("open3d", "open3d (a test dependency on Linux x86-64)")
     colors = np.random.default_rng(0).random((spot.n_vertices, 3))
     with pytest.warns(DataLossWarning, match="fans"):
         om = spot.with_attributes(color=colors).to_open3d()

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import need
 
 import shapeflow as sf
 from shapeflow import budget
@@ -52,7 +53,7 @@ def test_a_step_too_small_to_move_anything_says_so():
 
 
 def test_render_grid_with_empty_rows_is_refused():
-    pytest.importorskip("vtk", reason="rendering needs the 'render' extra")
+    need("vtk", "VTK (the 'render' extra)")
     from shapeflow.rendering.api import grid_shape as _grid
 
     assert _grid((1, 2), 2) == (1, 2) and _grid((2, 2), 3) == (2, 2)

@@ -18,9 +18,14 @@ def test_python_examples_run(tmp_path, monkeypatch, page):
     blocks = re.findall(r"```python\n(.*?)```", text, flags=re.S)
     assert blocks, f"no python example in {page}"
     monkeypatch.chdir(tmp_path)
+    namespace = {"__name__": "example"}
     for code in blocks:
-        exec(compile(code, str(ROOT / page), "exec"), {"__name__": "example"})
+        exec(compile(code, str(ROOT / page), "exec"), namespace)
     import shapeflow as sf
+
+    # a comment that counts shapes counts what the line returns
+    for n in re.findall(r"^shapes = .*# (\d+) shapes", text, flags=re.M):
+        assert namespace["shapes"].shape[0] == int(n)
 
     out = sf.load(tmp_path / "spot_enhanced.ply")        # the example's output, read back
     spot = sf.load_example("spot")
@@ -34,7 +39,9 @@ def test_readme_starts_with_the_two_commands_and_ci_runs_the_test_command():
     install, tests = (line.split("#")[0].strip() for line in first[:2])
     assert install.startswith("pip install") and "shapeflow " in install
     assert tests.endswith("python -m pytest -q")
-    assert tests in CI.read_text(encoding="utf-8")
+    ci = CI.read_text(encoding="utf-8")
+    # CI's fresh-clone leg runs both, as written, in a clone with nothing beside it
+    assert f"README_INSTALL='{install}'" in ci and f"README_TESTS='{tests}'" in ci
     assert len(text.splitlines()) < 200
 
 

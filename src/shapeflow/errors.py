@@ -29,14 +29,32 @@ class OutputError(ShapeflowError, OSError):
 
 
 class OptionalDependencyError(ImportError):
-    """An optional feature was used without its extra installed."""
+    """An optional feature was used without its extra installed, or its package fails to import.
 
-    def __init__(self, module: str, extra: str, feature: str):
-        super().__init__(
-            f"{feature} needs the optional package '{module}': "
-            f"pip install 'shapeflow[{extra}]'"
-        )
-        self.extra = extra
+    ``cause`` is the exception the import raised (or its text).  A package that is simply not
+    installed gives the ``pip install`` line; one that is installed but cannot load (an
+    ``ImportError`` or ``OSError`` from a missing system library, such as open3d without
+    ``libusb-1.0.so.0``) is named with the original error, so the message says what to fix.
+    """
+
+    def __init__(self, module: str, extra: str, feature: str, cause: BaseException | str | None = None):
+        why = cause if isinstance(cause, str) or cause is None else _one_line(cause)
+        if why and not why.startswith("ModuleNotFoundError"):
+            text = (f"{feature} needs the optional package '{module}', which is installed but fails to import: "
+                    f"{why} (install what it names, or reinstall: pip install 'shapeflow[{extra}]')")
+        else:
+            missing = f" ({why.split(': ', 1)[1]})" if why else ""
+            text = f"{feature} needs the optional package '{module}'{missing}: pip install 'shapeflow[{extra}]'"
+        super().__init__(text)
+        self.module, self.extra, self.feature = module, extra, feature
+        self.cause = why
+
+    def __reduce__(self):   # picklable (the batch runner sends errors between processes)
+        return (type(self), (self.module, self.extra, self.feature, self.cause))
+
+
+def _one_line(exc: BaseException) -> str:
+    return f"{type(exc).__name__}: {' '.join(str(exc).split()) or 'no message'}"
 
 
 class DataLossWarning(UserWarning):

@@ -25,8 +25,12 @@ def example_path(name: str) -> Path:
     return Path(str(resources.files("shapeflow") / "data" / EXAMPLES[name][0]))
 
 
+#: the axis each bundled example faces (Keenan Crane's Spot looks along -z, y up): the renderer's front
+FRONT = {"spot": "-z", "spot_cage": "-z"}
+
+
 def load_example(name: str) -> Mesh:
-    """Load a bundled example mesh."""
+    """Load a bundled example mesh (``metadata["front"]``: the axis it faces, for the renderer)."""
     from .io import load
 
-    return load(example_path(name))
+    return load(example_path(name)).with_metadata(front=FRONT[name])

@@ -34,8 +34,9 @@ def _need(module: str, extra: str):
 
     try:
         return importlib.import_module(module)
-    except ImportError as exc:
-        raise OptionalDependencyError(module.split(".")[0], extra, f"conversion to {module.split('.')[0]}") from exc
+    except Exception as exc:   # not only a missing package: a broken one (a missing system library) too
+        raise OptionalDependencyError(module.split(".")[0], extra, f"conversion to {module.split('.')[0]}",
+                                      exc) from exc
 
 
 def _triangles_only(mesh: Mesh, target: str) -> np.ndarray:

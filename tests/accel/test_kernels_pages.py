@@ -10,6 +10,7 @@ import threading
 
 import meshgen
 import pytest
+from conftest import need
 
 import shapeflow as sf
 from shapeflow import accel as kernels
@@ -127,7 +128,7 @@ def test_thread_count_follows_the_setting_and_the_machine(monkeypatch):
 
 
 def test_a_call_restores_the_callers_numba_threads():
-    numba = pytest.importorskip("numba")
+    numba = need("numba", "numba (the 'fast' extra)")
     m = meshgen.grid(6, 5, z=lambda x, y: 0.2 * x * y)
     numba.set_num_threads(numba.config.NUMBA_NUM_THREADS)
     before = numba.get_num_threads()

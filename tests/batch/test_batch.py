@@ -19,8 +19,9 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import need
 
-distributed = pytest.importorskip("distributed")
+distributed = need("distributed", "Dask's distributed (the 'batch' extra)")
 
 from dataset import make_dataset  # noqa: E402
 

@@ -7,6 +7,7 @@ import os
 from pathlib import Path
 
 import pytest
+from conftest import need
 
 import shapeflow as sf
 from shapeflow import cli
@@ -59,7 +60,7 @@ def test_plan_mirrors_the_tree_and_refuses_collisions(tree, tmp_path):
 
 
 def test_fsspec_urls(tree, tmp_path):
-    fsspec = pytest.importorskip("fsspec")
+    fsspec = need("fsspec", "fsspec (the 'batch' extra)")
     fs = fsspec.filesystem("memory")
     fs.pipe("/set/a/m.obj", (tree / "a" / "x.obj").read_bytes())
     fs.pipe("/set/b/n.ply", (tree / "a" / "b" / "y.ply").read_bytes())

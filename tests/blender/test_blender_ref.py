@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import FIXTURES, ROOT, fixture_cases, load_fixture_case, requires_shared
+from conftest import FIXTURES, ROOT, fixture_cases, load_fixture_case, need, requires_shared
 
 HARNESS = ROOT / "benchmarks" / "blender_ref.py"
 TOL = 1e-6  # × bounding-box diagonal; it is the same Blender, so this is ~0 in practice
@@ -44,7 +44,7 @@ def _load_harness():
 
 @pytest.fixture(scope="module")
 def br():
-    pytest.importorskip("bpy", reason="Blender's bpy module is not installed (pip install bpy==5.0.1, Python 3.11)")
+    need("bpy", "Blender's bpy module (pip install bpy==5.0.1, Python 3.11)")
     return _load_harness()
 
 

@@ -1,4 +1,4 @@
-"""``shapeflow info``: descriptions of shared and bundled meshes, clean errors."""
+"""``shapeflow info``: descriptions of the test meshes and bundled meshes, clean errors."""
 
 from __future__ import annotations
 
@@ -6,8 +6,9 @@ import subprocess
 import sys
 
 import pytest
-from conftest import MESHES, ROOT, requires_shared
+from conftest import MESHES, ROOT, load_fixture_mesh, requires_shared
 
+import shapeflow as sf
 from shapeflow.cli import main
 
 
@@ -24,16 +25,23 @@ def _field(out: str, key: str) -> str:
     raise AssertionError(f"no '{key}' line in:\n{out}")
 
 
+def suzanne_obj(folder) -> str:
+    """Blender's Suzanne primitive (tests/data/blender) as an OBJ file: a head with two eye sockets
+    and two separate eyes, 32 triangles and 468 quads."""
+    path = str(folder / "suzanne.obj")
+    sf.save(path, load_fixture_mesh("suzanne"))
+    return path
+
+
 @requires_shared
 @pytest.mark.parametrize("fname,loops,edges", [
     ("rook_cage_hybrid_open.obj", 1, 24),
     ("pawn_cage_quad_open.obj", 1, 24),
-    ("suzanne_hybrid_open.obj", 4, 13 + 13 + 8 + 8),
-    ("camelhead_tri_open.obj", 1, 56),
+    ("suzanne", 4, 13 + 13 + 8 + 8),
     ("plane_holes_tri_open.obj", 27, None),
 ])
-def test_info_open_mesh_boundary_loops(capsys, fname, loops, edges):
-    rc, out, err = _info(capsys, str(MESHES / fname))
+def test_info_open_mesh_boundary_loops(capsys, tmp_path, fname, loops, edges):
+    rc, out, err = _info(capsys, suzanne_obj(tmp_path) if fname == "suzanne" else str(MESHES / fname))
     assert rc == 0 and err == ""
     boundary = _field(out, "boundary")
     assert boundary.startswith(f"{loops} loop(s)"), boundary
@@ -45,8 +53,8 @@ def test_info_open_mesh_boundary_loops(capsys, fname, loops, edges):
 
 
 @requires_shared
-def test_info_open_hybrid_counts(capsys):
-    rc, out, _ = _info(capsys, str(MESHES / "suzanne_hybrid_open.obj"))
+def test_info_open_hybrid_counts(capsys, tmp_path):
+    rc, out, _ = _info(capsys, suzanne_obj(tmp_path))
     assert rc == 0
     assert _field(out, "vertices") == "507"
     assert _field(out, "faces") == "500 (32 triangles, 468 quads)"

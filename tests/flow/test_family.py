@@ -52,7 +52,7 @@ def _agree(mesh, lams, **opts):
 
 # --- agreement with flow() on the shared meshes -----------------------------------
 
-SHARED = ["spot_quad", "suzanne_hybrid_open", "penguin_control_hybrid", "camelhead_tri_open"]
+SHARED = ["spot_quad", "rook_cage_hybrid_open", "penguin_control_hybrid", "plane_holes_tri_open"]
 
 
 @requires_shared
@@ -173,7 +173,7 @@ def test_unchanged_path(opts, why):
     ({"strategy": "separate"}, "strategy='separate'"),
 ])
 def test_fallback_paths(opts, reason):
-    mesh = sf.load(MESHES / "suzanne_hybrid_open.obj")
+    mesh = sf.load(MESHES / "rook_cage_hybrid_open.obj")
     strategy = opts.pop("strategy", "auto")
     shapes, report = sf.family(mesh, [0.0, -5.0, 20.0, -60.0], lam_border=1.0, return_report=True,
                                strategy=strategy, **opts)
@@ -187,7 +187,7 @@ def test_fallback_paths(opts, reason):
 @requires_shared
 def test_area_normalized_needs_direct_solves():
     """Eq. 9 on a model of size ~1 is badly conditioned: no shared CG, flow()'s direct solver per λ."""
-    mesh = sf.load(MESHES / "camelhead_tri_open.obj")
+    mesh = sf.load(MESHES / "spot_tri.obj")
     report, _ = _agree(mesh, [-5.0, -30.0], normalized=False)
     assert report.path == "separate" and "CG iterations" in report.reason
 
@@ -373,7 +373,7 @@ def test_cli_writes_the_family(tmp_path, capsys):
     assert rc == 0
     names = sorted(p.name for p in out.iterdir())
     assert names == [f"penguin_control_hybrid_{i}_lam{v}.obj"
-                     for i, v in enumerate(["+000.0", "-005.0", "-010.0", "-015.0"])]
+                     for i, v in enumerate(["+000.0", "-005.0", "-010.0", "-015.0", "-020.0"])]
     mesh = sf.load(src)
     got = sf.load(out / names[2])
     assert np.abs(got.vertices - sf.flow(mesh, -10.0).vertices).max() <= 1e-6 * mesh.diagonal
@@ -383,7 +383,7 @@ def test_cli_writes_the_family(tmp_path, capsys):
     rc = main(["family", str(src), str(out), "--to", "-20", "--step", "-5", "--force"])
     assert rc == 0
     err = capsys.readouterr().err
-    assert "4 members" in err and "multi-shift" in err
+    assert "5 members" in err and "multi-shift" in err
 
 
 def test_cli_lambdas_options_and_errors(tmp_path, capsys):

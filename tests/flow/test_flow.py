@@ -5,7 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
-from conftest import MESHES, fixture_cases, load_fixture_case, load_fixture_mesh, requires_shared, shared_mesh_paths
+from conftest import (
+    MESHES,
+    fixture_cases,
+    load_fixture_case,
+    load_fixture_mesh,
+    need,
+    requires_shared,
+    shared_mesh_paths,
+)
 from meshgen import cube_sphere, grid, icosphere, random_rotation
 
 import shapeflow as sf
@@ -88,7 +96,7 @@ def test_paper_mode_matches_dense_solve_open(lam_border):
 @pytest.mark.parametrize("solver", ["cg", "lu", "cholesky"])
 def test_solvers_agree(solver):
     if solver == "cholesky":
-        pytest.importorskip("cholespy")
+        need("cholespy", "cholespy (the 'cholesky' extra)")
     m = cube_sphere(6, mix=0.5, seed=1)
     ref = sf.flow(m, -30.0, iterations=3, solver="lu")
     out = sf.flow(m, -30.0, iterations=3, solver=solver, rtol=1e-12)

@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import need
 
 import shapeflow as sf
 
-pygltflib = pytest.importorskip("pygltflib", reason="pygltflib (the 'gltf' extra) is not installed")
+pygltflib = need("pygltflib", "pygltflib (the 'gltf' extra)")
 
 
 def cube_with_seams():
@@ -172,7 +173,7 @@ def test_node_transforms_place_the_meshes_as_the_scene_shows_them(tmp_path):
     g.save_binary(str(src))
     m = sf.load(src)
     np.testing.assert_allclose(m.vertices, expected, atol=1e-5)
-    trimesh = pytest.importorskip("trimesh")
+    trimesh = need("trimesh", "trimesh (a test dependency)")
     scene = trimesh.load(str(src), force="scene", process=False)
     theirs = np.unique(np.round(scene.to_geometry().vertices, 4), axis=0)
     assert np.array_equal(np.unique(np.round(m.vertices, 4), axis=0), theirs)   # trimesh's scene graph agrees

@@ -426,7 +426,7 @@ def test_save_weights_validates_and_names_the_file(tmp_path):
 
 
 # --------------------------------------------------------------------------
-# the shared meshes' counts (from shared/meshes/SOURCES.md)
+# the test meshes' counts (from tests/data/SOURCES.md)
 # --------------------------------------------------------------------------
 
 SOURCES_COUNTS = {  # file: (vertices, triangles, quads, n-gons)
@@ -435,17 +435,11 @@ SOURCES_COUNTS = {  # file: (vertices, triangles, quads, n-gons)
     "spot_control_hybrid.obj": (188, 4, 160, 16),
     "bob_quad.obj": (5344, 0, 5344, 0),
     "bob_control_quad.obj": (334, 0, 334, 0),
-    "blub_quad.obj": (7106, 0, 7104, 0),
     "blub_control_hybrid.obj": (112, 8, 100, 4),
     "penguin_control_hybrid.obj": (201, 48, 169, 4),
-    "sword_quad_dominant_hybrid.obj": (22293, 348, 22117, 0),
     "rook_cage_hybrid_open.obj": (768, 44, 733, 0),
     "pawn_cage_quad_open.obj": (601, 0, 588, 0),
-    "suzanne_hybrid_open.obj": (507, 32, 468, 0),
-    "camelhead_tri_open.obj": (11381, 22704, 0, 0),
-    "camel_tri.obj": (9770, 19536, 0, 0),
     "plane_holes_tri_open.obj": (8519, 16747, 0, 0),
-    "amo_large_tri.obj": (90112, 180220, 0, 0),
 }
 
 
@@ -465,13 +459,16 @@ def test_shared_mesh_counts_match_sources(fname):
         assert set(np.unique(s).tolist()) == {3, 4, 5}  # the cages' n-gons are pentagons
 
 
-@requires_shared
 def test_large_mesh_round_trips(tmp_path):
-    """The largest shared mesh through OBJ and binary PLY (speed: benchmarks/bench_operators.py)."""
-    m = sio.load(MESHES / "amo_large_tri.obj")
-    assert m.n_vertices == 90112 and m.n_faces == 180220
-    sio.save(tmp_path / "amo.ply", m)
-    back = sio.load(tmp_path / "amo.ply")
+    """A closed triangle mesh of 163,842 vertices through OBJ and binary PLY (speed:
+    benchmarks/bench_operators.py)."""
+    from meshgen import icosphere
+
+    sio.save(tmp_path / "large.obj", icosphere(7))
+    m = sio.load(tmp_path / "large.obj")
+    assert m.n_vertices == 163842 and m.n_faces == 327680
+    sio.save(tmp_path / "large.ply", m)
+    back = sio.load(tmp_path / "large.ply")
     assert np.array_equal(back.vertices, m.vertices)
     assert np.array_equal(back.face_indices, m.face_indices)
 

@@ -168,7 +168,7 @@ def test_flow_moves_positions_keeps_uvs_and_groups_and_recomputes_normals(sample
 
 
 @requires_shared
-@pytest.mark.parametrize("name", ["bob_quad", "spot_quad", "blub_quad"])
+@pytest.mark.parametrize("name", ["bob_quad", "spot_quad", "spot_tri"])
 def test_shared_assets_round_trip(name, tmp_path):
     path = MESHES / f"{name}.obj"
     m = sf.load(path)

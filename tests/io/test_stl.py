@@ -7,12 +7,12 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import MESHES, requires_shared
+from conftest import MESHES, need, requires_shared
 
 import shapeflow as sf
 from shapeflow.errors import DataLossWarning
 
-stl_mesh = pytest.importorskip("stl.mesh", reason="numpy-stl (a test dependency) is not installed")
+stl_mesh = need("stl.mesh", "numpy-stl (a test dependency)")
 
 
 @pytest.fixture

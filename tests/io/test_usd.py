@@ -6,12 +6,13 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import need
 from meshgen import grid, icosphere
 
 import shapeflow as sf
 from shapeflow.errors import MeshError
 
-pxr = pytest.importorskip("pxr", reason="usd-core (the 'usd' extra) is not installed")
+pxr = need("pxr", "usd-core (the 'usd' extra)")
 from pxr import Gf, Sdf, Usd, UsdGeom, UsdShade, Vt  # noqa: E402
 
 

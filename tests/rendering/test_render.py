@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import need
 from meshgen import cube_sphere, grid
 
 import shapeflow as sf
@@ -363,7 +364,7 @@ def test_image_up_axis_option(tmp_path, capsys):
 
 
 def test_rendering_changes_no_process_wide_state(tmp_path):
-    pytest.importorskip("vtk")
+    need("vtk", "VTK (the 'render' extra)")
     import os
 
     from vtkmodules.vtkCommonCore import vtkObject
@@ -378,3 +379,109 @@ def test_rendering_changes_no_process_wide_state(tmp_path):
     assert img.shape[:2] == (120, 160) and (img < 250).any()          # something was drawn
     assert dict(os.environ) == env
     assert vtkObject.GetGlobalWarningDisplay() == warn
+
+
+# --------------------------------------------------------------------------
+# the view convention (Blender's) and clipped colour ranges
+
+def test_named_views_are_blenders_from_the_models_front():
+    """Front looks at the side the model faces, right from its right (+x in Blender's frame), top from
+    above; z up is Blender's frame (front faces -y), y up is turned as Blender's importers turn it."""
+    from shapeflow.rendering.style import frame
+
+    pts = np.array([[-1.0, -1, -1], [1, 1, 1]])
+    def seen_from(view, up="y", front=None):
+        cam = RS.camera(pts, view, up, 1.0, front=front)
+        d = np.asarray(cam.position) - np.asarray(cam.target)
+        return np.round(d / np.linalg.norm(d), 9)
+
+    assert seen_from("front", "z").tolist() == [0, -1, 0]            # Blender: the front view looks along +y
+    assert seen_from("right", "z").tolist() == [1, 0, 0]
+    assert seen_from("top", "z").tolist() == [0, 0, 1]
+    assert seen_from("front", "y").tolist() == [0, 0, 1]              # y up: Blender's (x, -z, y)
+    assert seen_from("back", "y").tolist() == [0, 0, -1] and seen_from("left", "y").tolist() == [-1, 0, 0]
+    assert seen_from((0.0, 0.0), "y").tolist() == seen_from("front", "y").tolist()
+    assert seen_from((90.0, 0.0), "y").tolist() == seen_from("right", "y").tolist()
+    assert seen_from("front", "y", "-z").tolist() == [0, 0, -1]       # a model that faces -z
+    assert seen_from("right", "y", "-z").tolist() == [-1, 0, 0]       # its right: up × front
+    R_, U, F = frame("y", "-z")
+    assert np.array_equal(R_, np.cross(U, F))
+    with pytest.raises(ParameterError, match="front must be one of"):
+        frame("y", "forward")
+    with pytest.raises(ParameterError, match="along the up axis"):
+        frame("z", "+z")
+
+
+def test_the_bundled_spot_says_which_way_it_faces():
+    spot = sf.load_example("spot")
+    V = spot.vertices
+    snout = V[:, 2] < V[:, 2].min() + 0.2 * np.ptp(V[:, 2])       # the part furthest towards -z ...
+    assert V[snout, 1].mean() > V[:, 1].mean() + 0.3               # ... is high up: the head
+    assert abs(V[snout, 0].mean()) < 1e-9                          # and centred: the face, not a leg
+    assert spot.metadata["front"] == "-z" and sf.load_example("spot_cage").metadata["front"] == "-z"
+
+
+def _visible_fraction_from_geometry(V, region, towards: int, n: int = 15) -> float:
+    """The share of an n × n grid over the xy extent whose nearest vertex, seen from z = towards·∞,
+    lies in ``region``: an orthographic point z-buffer from the positions alone."""
+    lo, hi = V[:, :2].min(axis=0), V[:, :2].max(axis=0)
+    ij = np.floor((V[:, :2] - lo) / (hi - lo) * (n - 1e-9)).astype(int)
+    key = ij[:, 0] * n + ij[:, 1]
+    order = np.lexsort((-towards * V[:, 2], key))
+    first = np.r_[True, key[order][1:] != key[order][:-1]]
+    return float(region[order][first].mean())
+
+
+@needs_render
+def test_the_default_view_of_spot_shows_its_face(tmp_path):
+    spot = sf.load_example("spot")
+    V = spot.vertices
+    snout = V[:, 2] < V[:, 2].min() + 0.2 * np.ptp(V[:, 2])
+    expect_front = _visible_fraction_from_geometry(V, snout, towards=-1)     # the camera on the -z side
+    expect_back = _visible_fraction_from_geometry(V, snout, towards=+1)
+    assert expect_front > 0.3 and expect_back < 0.05
+    colors = np.where(snout[:, None], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0])
+
+    def snout_share(img):
+        r, b = img[..., 0].astype(int), img[..., 2].astype(int)
+        red, blue = int((r > b + 60).sum()), int((b > r + 60).sum())
+        return red / (red + blue)
+
+    default = R.render(spot, None, color=colors, size=(200, 160), colorbar=False)
+    assert abs(snout_share(default) - expect_front) < 0.15
+    assert snout_share(R.render(spot, None, color=colors, view="back", size=(200, 160), colorbar=False)) < 0.05
+    # the command line: the default and --view 0,0 are the same picture, the front
+    assert main(["render", "example:spot", str(tmp_path / "a.png"), "--size", "200x160", "-q"]) == 0
+    assert main(["render", "example:spot", str(tmp_path / "b.png"), "--size", "200x160", "-q", "--view", "0,0"]) == 0
+    assert np.array_equal(read_png(tmp_path / "a.png"), read_png(tmp_path / "b.png"))
+    # seen from its right, the head is on the left of the picture
+    right = R.render(spot, None, color=colors, view="right", size=(200, 160), colorbar=False).astype(int)
+    cols = np.nonzero(right[..., 0] > right[..., 2] + 60)[1]
+    assert cols.mean() < 0.4 * right.shape[1]
+
+
+def test_legend_ends_say_where_the_data_pass_the_range():
+    from shapeflow.rendering.overlay import tick_labels
+
+    assert tick_labels((-19.0, 19.0), True, (-87.0, 71.0)) == [(-19.0, "≤ -19"), (0.0, "0"), (19.0, "≥ 19")]
+    assert tick_labels((-19.0, 19.0), True, (-5.0, 19.0)) == [(-19.0, "-19"), (0.0, "0"), (19.0, "19")]
+    assert tick_labels((0.0, 1.0), False, (0.0, 3.0)) == [(0.0, "0"), (1.0, "≥ 1")]
+
+
+@needs_render
+def test_a_clipped_legend_draws_its_ends():
+    """A field from -87 to 71 drawn with the range ±19: both ends of the bar get a triangle in the
+    end's colour (dark blue left, dark red right); an unclipped one has none."""
+    mesh = grid(12, 12)
+    values = np.linspace(-87.0, 71.0, mesh.n_vertices)
+    clipped = R.render(mesh, None, color=values, clim=(-19, 19), size=(400, 300))
+    plain = R.render(mesh, None, color=values, clim=(-87, 87), size=(400, 300))
+    band = slice(300 - RA.colorbar_height(400), 300)
+
+    def coloured_columns(img):
+        r, g, b = (img[band, :, i].astype(int) for i in range(3))
+        return np.nonzero(((b > r + 80) | (r > b + 80)).any(axis=0))[0]
+
+    bar = coloured_columns(plain)
+    ends = coloured_columns(clipped)
+    assert ends.min() < bar.min() - 3 and ends.max() > bar.max() + 3   # triangles beyond both ends

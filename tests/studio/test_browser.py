@@ -10,11 +10,12 @@ import urllib.request
 
 import numpy as np
 import pytest
+from conftest import need
 
 import shapeflow as sf
 
-pytest.importorskip("aiohttp", reason="aiohttp (the 'studio' extra) is not installed")
-pytest.importorskip("selenium.webdriver", reason="selenium (a test dependency) is not installed")
+need("aiohttp", "aiohttp (the 'studio' extra)")
+need("selenium.webdriver", "selenium (a test dependency)")
 from browser import CHROMIUM, DRIVER, canvas_box, chromium_page, pixels, settled, shown, wait  # noqa: E402
 
 from shapeflow.studio.headless import set_control  # noqa: E402

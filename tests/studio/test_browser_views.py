@@ -14,12 +14,13 @@ import urllib.request
 
 import numpy as np
 import pytest
+from conftest import need
 from meshgen import cube_sphere
 
 import shapeflow as sf
 
-pytest.importorskip("aiohttp", reason="aiohttp (the 'studio' extra) is not installed")
-pytest.importorskip("selenium.webdriver", reason="selenium (a test dependency) is not installed")
+need("aiohttp", "aiohttp (the 'studio' extra)")
+need("selenium.webdriver", "selenium (a test dependency)")
 from browser import CHROMIUM, DRIVER, chromium_page, pixels, settled, shown, wait  # noqa: E402
 
 from shapeflow.studio.headless import set_control  # noqa: E402

@@ -174,7 +174,7 @@ def numba_available() -> bool:
     """True when numba can be imported (the ``fast`` extra)."""
     try:
         import numba  # noqa: F401
-    except ImportError as exc:
+    except Exception as exc:   # noqa: BLE001 - not installed, or broken (e.g. a NumPy it does not support)
         _log.info("shapeflow: compiled kernels unavailable (%s); NumPy/SciPy paths are used", exc)
         return False
     return True

@@ -41,8 +41,8 @@ CLOSE_SECONDS = 20.0
 def distributed_module():
     try:
         import distributed
-    except ImportError:
-        raise OptionalDependencyError("distributed", "batch", "shapeflow batch") from None
+    except Exception as exc:   # not installed, or installed and broken
+        raise OptionalDependencyError("distributed", "batch", "shapeflow batch", exc) from None
     return distributed
 
 

@@ -74,10 +74,10 @@ def filesystem(url: str):
     """``(fs, path)`` of an fsspec URL (ImportError naming the extra without fsspec)."""
     try:
         import fsspec
-    except ImportError:
+    except Exception as exc:   # not installed, or installed and broken
         from ..errors import OptionalDependencyError
 
-        raise OptionalDependencyError("fsspec", "batch", f"reading {url!r}") from None
+        raise OptionalDependencyError("fsspec", "batch", f"reading {url!r}", exc) from None
     try:
         return fsspec.core.url_to_fs(url)
     except (ImportError, ValueError) as exc:

@@ -46,7 +46,7 @@ def register(sub) -> None:
         'optional "spacing" (fraction of the radius, default 0.25), "falloff" (null or "smooth"), '
         '"lambda_border", "brush" ("enhance" or "inflate") and "strength" (inflate).',
     )
-    p.add_argument("input", metavar="IN", help="mesh file (OBJ/PLY/OFF) or example:NAME")
+    p.add_argument("input", metavar="IN", help="mesh file (OBJ, PLY, OFF, STL, glTF/GLB, USD) or example:NAME")
     p.add_argument("output", metavar="OUT", help="where to write the result (format from the extension)")
     p.add_argument("--stroke", required=True, metavar="JSON", help="stroke file (see above)")
     p.add_argument("--weights", metavar="FILE_OR_ATTRIBUTE",
@@ -57,6 +57,8 @@ def register(sub) -> None:
     p.add_argument("--force", action="store_true",
                    help="allow OUTPUT to be the input file, or a read-only file (overwrite it)")
     p.add_argument("--quiet", "-q", action="store_true", help="no summary on stderr")
+    p.add_argument("--strict", action="store_true",
+                   help="a stroke that moves no vertex is an error (exit 2, nothing written) instead of a warning")
     add_image_options(p)
     p.set_defaults(func=run)
 
@@ -175,6 +177,11 @@ def run(args) -> int:
     if operand is not mesh:    # welded: count the input's vertices (every copy of a moved vertex moved)
         moved = np.flatnonzero(np.isin(operand.weld_map, moved))
     t2 = time.perf_counter()
+    if moved.size == 0:
+        why = f"the stroke moved no vertex: {why_nothing_moved(operand, stroke, centers, weights)}"
+        if args.strict:
+            raise ParameterError(f"{why} (--strict)")
+        eprint(f"shapeflow brush: warning: {why}; the output is the input")
     result = restore(brush.mesh)
     save_mesh(out_path, result, args.force)
     if args.image:
@@ -192,6 +199,26 @@ def run(args) -> int:
     return 0
 
 
+def why_nothing_moved(mesh, stroke: dict, centers, weights) -> str:
+    """Why a stroke left every vertex where it was, in the stroke file's terms."""
+    from scipy.spatial import cKDTree
+
+    r = stroke["radius"]
+    if len(centers) == 0:
+        return "it has no dab"
+    dist, nearest = cKDTree(mesh.vertices).query(np.asarray(centers, dtype=np.float64))
+    if dist.min() > r:
+        return (f"no vertex lies within \"radius\" {r:g} of its {len(centers)} dab(s) (the nearest is "
+                f"{dist.min():.4g} away; the mesh's bounding-box diagonal is {mesh.diagonal:.4g})")
+    if stroke["brush"] == "enhance" and stroke["lambda"] == 0:
+        return "\"lambda\" is 0"
+    if stroke["brush"] == "inflate" and stroke["strength"] == 0:
+        return "\"strength\" is 0"
+    if weights is not None:
+        return "the vertices under it have weight 0 (--weights)"
+    return "the vertices under it are held (a boundary with \"lambda_border\" 0, or a flat patch)"
+
+
 def warm_up_brush() -> float:
     """Compile the brush's kernels on a small sphere (one dab of each kind); returns the seconds."""
     import numpy as np
@@ -203,7 +230,7 @@ def warm_up_brush() -> float:
     u, v = np.meshgrid(np.linspace(0, 2 * np.pi, k, endpoint=False), np.linspace(0.2, np.pi - 0.2, k))
     P = np.stack([np.cos(u) * np.sin(v), np.sin(u) * np.sin(v), np.cos(v)], -1).reshape(-1, 3)
     idx = np.arange(k * k).reshape(k, k)
-    quads = np.stack([idx[:-1, :-1], idx[:-1, np.r_[1:k, 0]], idx[1:, np.r_[1:k, 0]], idx[1:, :-1]], -1)
+    quads = np.stack([idx[:-1], idx[:-1, np.r_[1:k, 0]], idx[1:, np.r_[1:k, 0]], idx[1:]], -1)   # rings, wrapped
     b = Brush(Mesh(P, quads.reshape(-1, 4)), lam=-5.0, radius=0.8)
     b.dab(P[k * k // 2])
     return time.perf_counter() - t0

@@ -46,6 +46,39 @@ def load_mesh_arg(arg: str, *, faces: bool = True, quiet: bool = True, command: 
     return mesh
 
 
+def option_number(option: str, value: float, *, lo: float | None = None) -> float:
+    """A number given with ``option``, checked in the user's terms before it becomes a library
+    parameter: ``--strength must be finite, got inf`` (not the library's ``lam`` with its sign)."""
+    from .. import params
+    from ..errors import ParameterError
+
+    v = params.number(option, value, lo=lo)
+    if abs(v) > params.LAMBDA_MAX:
+        name = option if lo is not None and lo >= 0 else f"|{option}|"
+        raise ParameterError(f"{name} must be <= {params.LAMBDA_MAX:g} (beyond it the flow's system is singular in "
+                             f"double precision, and one step is its limit already), got {v:g}")
+    return v
+
+
+@contextlib.contextmanager
+def option_names(names: dict):
+    """Within the block, a library ParameterError that starts with a parameter's name (``iterations
+    must be >= 0``, ``|lam_border| must be ...``) is told with the option's name instead
+    (``names``: parameter -> option, e.g. ``{"iterations": "--iterations"}``)."""
+    import re
+
+    from ..errors import ParameterError
+
+    try:
+        yield
+    except ParameterError as exc:
+        text = str(exc)
+        m = re.match(r"^(\|?)([A-Za-z_][A-Za-z_0-9]*)(\|?)(\b.*)$", text, re.S)
+        if m and m.group(2) in names:
+            raise type(exc)(f"{m.group(1)}{names[m.group(2)]}{m.group(3)}{m.group(4)}") from None
+        raise
+
+
 @dataclass
 class Collected:
     """What a command said and did while :func:`collecting` was active."""
@@ -151,7 +184,7 @@ class progress_callback:
             return None
         try:
             from tqdm import tqdm
-        except ImportError:
+        except Exception:   # noqa: BLE001 - no bars without a working tqdm
             return None
         self.bar = tqdm(total=self.total, desc=self.desc, unit="it", file=sys.stderr, leave=False)
 

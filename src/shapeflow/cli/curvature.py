@@ -19,7 +19,7 @@ def register(sub) -> None:
         "the surface is convex) with the hybrid operator, and write it as the vertex attribute "
         "'curvature' of a PLY file (or the values alone to .npy/.txt). Values at boundary vertices "
         "of open meshes are not curvature (no closed ring); pictures paint them grey.")
-    p.add_argument("input", metavar="IN", help="mesh file (OBJ/PLY/OFF) or example:NAME")
+    p.add_argument("input", metavar="IN", help="mesh file (OBJ, PLY, OFF, STL, glTF/GLB, USD) or example:NAME")
     p.add_argument("output", metavar="OUT",
                    help="a .ply file (mesh + 'curvature' attribute), or .npy/.txt (one value per vertex)")
     p.add_argument("--area", choices=["barycentric", "ring", "mixed"], default="barycentric",
@@ -27,7 +27,9 @@ def register(sub) -> None:
                         "ring area, about H/3) or mixed (Meyer's mixed Voronoi area)")
     p.add_argument("--image", metavar="PNG",
                    help="also render the mesh coloured by curvature (needs shapeflow[render])")
-    p.add_argument("--view", default="iso", help="view for --image (front, side, top, iso, AZ,EL; default iso)")
+    p.add_argument("--view", default="iso",
+                   help="view for --image (front, back, left, right, top, bottom, iso, or AZ,EL from the "
+                        "model's front; default iso)")
     p.add_argument("--up", choices=["auto", "y", "z"], default="auto",
                    help="the model's up axis for --image (default auto: z for STL, y otherwise)")
     p.add_argument("--size", default="800x600", metavar="WxH", help="size of --image (default 800x600)")
@@ -62,10 +64,10 @@ def run(args) -> int:
         write_values(out, h, args.force)
     if args.image:
         from ..rendering import render
-        from .images import facing, up_axis
+        from .images import up_axis
 
         up = up_axis(args.up, mesh)
-        render(result, args.image, color="curvature", view=facing(args.view, mesh, up), up=up, size=size,
+        render(result, args.image, color="curvature", view=args.view, up=up, size=size,
                label=f"mean curvature ({args.area} area)")
     if not args.quiet:
         bnd = mesh.topology.boundary_vertex_mask

@@ -3,7 +3,8 @@
 The members come from :func:`shapeflow.family` (one shared multi-shift solve
 where the flow options allow it).  File names carry the member's position and
 its λ with a fixed width, e.g. ``spot_00_lam+000.0.ply`` …
-``spot_47_lam-235.0.ply``, so a plain sort lists them in family order.
+``spot_48_lam-240.0.ply``, so a plain sort lists them in family order.  ``--to`` is included when it
+lies on the grid ``--from + k·--step``.
 """
 
 from __future__ import annotations
@@ -19,8 +20,17 @@ from .. import params
 from ..errors import ParameterError
 from ..geometry import refresh_normals
 from ..io import output_target
-from .common import eprint, load_mesh_arg, note_fact, progress_callback, save_mesh, welded_for_operator
-from .flow import add_flow_options, flow_kwargs
+from .common import (
+    eprint,
+    load_mesh_arg,
+    note_fact,
+    option_names,
+    option_number,
+    progress_callback,
+    save_mesh,
+    welded_for_operator,
+)
+from .flow import OPTION_NAMES, add_flow_options, flow_kwargs
 
 #: members solved in one batch are held in memory together; above this many
 #: bytes of positions the family is solved in batches (in order of |λ|)
@@ -32,12 +42,13 @@ FORMATS = ("ply", "obj", "off", "stl", "glb", "gltf")
 def register(sub) -> None:
     p = sub.add_parser(
         "family", help="a family of shapes, one mesh per λ, from one shared solve (figure 1)",
-        description="Run the flow for a range of λ (like Python's range: --to is excluded) and write "
+        description="Run the flow for a range of λ (--from, --from + --step, ... up to --to, included when it "
+                    "lies on that grid) and write "
                     "one mesh per λ into OUTDIR.  With one iteration all members share a single "
                     "multi-shift CG solve (about the cost of the largest |λ| alone); otherwise each λ "
                     "is solved on one shared operator.  Flow options as for 'shapeflow flow'.",
         epilog="Figure 1 of the paper: shapeflow family IN OUTDIR --from 0 --to -240 --step -5 "
-               "(48 members, λ = 0, -5, ..., -235).")
+               "(49 members, λ = 0, -5, ..., -240).")
     add_flow_options(p)
     _retitle(p, "output", metavar="OUTDIR",
              help="directory for the members (created if missing); files NAME_INDEX_lamVALUE.EXT")
@@ -48,7 +59,7 @@ def register(sub) -> None:
     g.add_argument("--from", dest="lam_from", type=float, default=None, metavar="A",
                    help="first λ (default 0 with --to/--step)")
     g.add_argument("--to", dest="lam_to", type=float, default=None, metavar="B",
-                   help="end of the range, excluded (like range())")
+                   help="end of the range, included when it lies on the grid A + k·S")
     g.add_argument("--step", dest="lam_step", type=float, default=None, metavar="S",
                    help="increment, non-zero, pointing from A to B (e.g. -5)")
     g.add_argument("--lambdas", default=None, metavar="L1,L2,...",
@@ -81,7 +92,8 @@ def _number(name: str, text: str) -> float:
 
 
 def lams_from_args(args) -> list[float]:
-    """The members' λ from --lambdas or --from/--to/--step (end excluded)."""
+    """The members' λ from --lambdas or --from/--to/--step: A, A + S, ... up to B, B included when it lies on
+    the grid (within a billionth of a step: 0 to -240 step -5 gives 49 members)."""
     ranged = any(x is not None for x in (args.lam_from, args.lam_to, args.lam_step))
     if args.lambdas is not None:
         if ranged:
@@ -99,10 +111,11 @@ def lams_from_args(args) -> list[float]:
         s = _number("--step", str(args.lam_step))
         if s == 0.0:
             raise ParameterError("--step must not be 0")
-        count = math.ceil((b - a) / s - 1e-9)
-        if count <= 0:
+        steps = (b - a) / s
+        if steps < -1e-9:
             raise ParameterError(f"--from {a:g} --to {b:g} --step {s:g} gives no λ "
-                                 "(the step must point from --from towards --to, which is excluded)")
+                                 "(the step must point from --from towards --to)")
+        count = math.floor(steps + 1e-9) + 1 if math.isfinite(steps) else math.inf
         if count > MAX_MEMBERS:
             raise ParameterError(f"--from/--to/--step give {count} members; at most {MAX_MEMBERS}")
         lams = [a + i * s for i in range(count)]
@@ -153,6 +166,7 @@ def run(args) -> int:
 
     t0 = time.perf_counter()
     lams = lams_from_args(args)
+    option_number("--lambda-border", args.lambda_border)
     image = getattr(args, "image", None)
     if image:
         from .images import check_picture_path
@@ -175,7 +189,8 @@ def run(args) -> int:
     if not outdir.exists() and not parent.is_dir():
         raise ParameterError(f"OUTDIR {str(outdir)!r}: its folder {str(parent)!r} does not exist")
     mesh = load_mesh_arg(args.input)
-    operand, kw, restore = welded_for_operator(mesh, flow_kwargs(args, mesh), "family", args.quiet)
+    with option_names(OPTION_NAMES):
+        operand, kw, restore = welded_for_operator(mesh, flow_kwargs(args, mesh), "family", args.quiet)
     outdir.mkdir(exist_ok=True)
     for p in (paths[0], image):   # every output writable before any work (the folder exists now)
         if p:
@@ -194,8 +209,9 @@ def run(args) -> int:
                 if cb is not None:
                     cb(_base + d, 2 * len(lams))
 
-            shapes, rep = family(operand, [lams[i] for i in idx], strategy=args.strategy,
-                                 progress=solved, return_report=True, **kw)
+            with option_names(OPTION_NAMES):
+                shapes, rep = family(operand, [lams[i] for i in idx], strategy=args.strategy,
+                                     progress=solved, return_report=True, **kw)
             reports.append(rep)
             done += len(idx)
             for i, V in zip(idx, shapes):

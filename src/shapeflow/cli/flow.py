@@ -11,6 +11,8 @@ from .common import (
     load_mesh_arg,
     note_compiling,
     note_fact,
+    option_names,
+    option_number,
     progress_callback,
     resolve_output,
     save_mesh,
@@ -21,7 +23,7 @@ from .images import add_image_options
 
 
 def add_flow_options(p) -> None:
-    p.add_argument("input", help="mesh file (OBJ/PLY/OFF) or example:NAME")
+    p.add_argument("input", help="mesh file (OBJ, PLY, OFF, STL, glTF/GLB, USD) or example:NAME")
     p.add_argument("output", help="where to write the result (format from the extension)")
     p.add_argument("--lambda-border", type=float, default=0.0, metavar="B",
                    help="λ_b for boundary vertices of open meshes, own sign (default 0: boundary fixed)")
@@ -86,15 +88,25 @@ def flow_kwargs(args, mesh) -> dict:
                 solver=args.solver)
 
 
+#: the library's parameters by the options that set them (messages name the option the user wrote)
+OPTION_NAMES = {"lam_border": "--lambda-border", "iterations": "--iterations", "axes": "--axes",
+                "weights": "--weights", "scheme": "--scheme", "update": "--update", "solver": "--solver",
+                "compat": "--compat"}
+
+
+def lam_from_args(args) -> float:
+    """The signed λ from ``--lambda``, or ``--strength`` with the command's sign, checked in the
+    option's own name and sign (``--strength inf``: ``--strength must be finite, got inf``)."""
+    option_number("--lambda-border", args.lambda_border)
+    if args.sign is None:
+        return option_number("--lambda", args.lam)
+    return args.sign * option_number("--strength", args.strength, lo=0.0)
+
+
 def run(args) -> int:
     from .. import flow
 
-    if args.sign is None:
-        lam = args.lam
-    else:
-        if args.strength < 0:
-            raise ParameterError(f"--strength must be >= 0, got {args.strength}")
-        lam = args.sign * args.strength
+    lam = lam_from_args(args)
     out_path = resolve_output(args.input, args.output, args.force, args.image)
     t0 = time.perf_counter()
     mesh = load_mesh_arg(args.input, quiet=args.quiet, command=args.command)
@@ -103,7 +115,7 @@ def run(args) -> int:
     if not args.quiet and operand.n_vertices >= 1_000_000:
         eprint(f"shapeflow {args.command}: solving {args.iterations} implicit step(s) on {operand.n_vertices:,} "
                "vertices")
-    with progress_callback(args.iterations, "flow", quiet=args.quiet) as cb:
+    with progress_callback(args.iterations, "flow", quiet=args.quiet) as cb, option_names(OPTION_NAMES):
         result = flow(operand, lam, progress=cb, **kw)
     report = result.report
     note_fact("report", report)

@@ -35,7 +35,7 @@ def before_after(path: str, before, after, *, label_before: str = "input", label
     check_picture_path(path)
     up = up_axis(up, before)
     render_meshes([before, after], path, labels=[label_before, label_after], color=color, edges=edges,
-                  shading=shading, view=facing(view, before, up), up=up, size=PANEL)
+                  shading=shading, view=view, up=up, size=PANEL)
     if not quiet:
         eprint(f"image -> {path}")
 
@@ -46,21 +46,6 @@ def up_axis(choice: str, mesh) -> str:
     if choice != "auto":
         return choice
     return "z" if "stl" in getattr(mesh, "metadata", {}) else "y"
-
-
-def facing(view, mesh, up: str):
-    """A named view turned to the model's front by the file's convention.
-
-    glTF models face +Z (the glTF convention), the frame the named views are defined in.  OBJ, PLY
-    and OFF files, as Blender exports them by default (forward -Z) and as the bundled Spot is, face
-    -Z: with the y axis up their named views turn by 180°, so "front" shows the front.  Angles given
-    as numbers are used as they are."""
-    from ..rendering import VIEWS
-
-    if not isinstance(view, str) or view.strip().lower() not in VIEWS or up != "y" or "gltf" in mesh.metadata:
-        return view
-    az, el = VIEWS[view.strip().lower()]
-    return (az + 180.0, el)
 
 
 def add_image_options(parser, help: str = "also draw input and result side by side (needs shapeflow[render])") -> None:
@@ -109,6 +94,6 @@ def family_image(path: str, meshes, lams, *, view=VIEW, up: str = "auto", max_pa
     rows = 1 if len(idx) <= 6 else 2
     render_meshes([meshes[i] for i in idx], path, colors=[cols[i] for i in idx],
                   labels=[f"λ={lams[i] + 0.0:g}" for i in idx], grid=(rows, int(np.ceil(len(idx) / rows))),
-                  view=facing(view, meshes[0], up_axis(up, meshes[0])), up=up_axis(up, meshes[0]), size=(260, 280))
+                  view=view, up=up_axis(up, meshes[0]), size=(260, 280))
     if not quiet:
         eprint(f"image -> {path}")

@@ -14,7 +14,7 @@ def register(sub) -> None:
     p = sub.add_parser("info", help="describe a mesh: face sizes, boundary loops, manifoldness, warnings",
                        description="Describe a mesh: counts by face size, boundary loops, "
                        "manifoldness, bounding box and anything suspicious.")
-    p.add_argument("mesh", help="mesh file (OBJ/PLY/OFF) or example:NAME")
+    p.add_argument("mesh", help="mesh file (OBJ, PLY, OFF, STL, glTF/GLB, USD) or example:NAME")
     p.set_defaults(func=run)
 
 

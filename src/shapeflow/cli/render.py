@@ -16,15 +16,20 @@ def register(sub) -> None:
         "colour bar, optional wireframe (quads drawn as quads). Several meshes are drawn side by side "
         "with one camera and one colour range, so they can be compared.")
     p.add_argument("paths", nargs="+", metavar="PATH",
-                   help="input meshes (OBJ/PLY/OFF or example:NAME), then the PNG to write")
+                   help="input meshes (OBJ, PLY, OFF, STL, glTF/GLB, USD, or example:NAME), then the PNG to write")
     p.add_argument("--color", "-c", default="curvature", metavar="FIELD",
                    help="curvature (signed mean curvature; a PLY 'curvature' attribute if present), "
                         "displacement:REF (along REF's normals), weights, none, an attribute name, "
                         "or a colour such as '#4477aa' (default curvature)")
     p.add_argument("--view", "-v", default="front", metavar="VIEW",
-                   help="front, side, back, top, bottom, iso, or AZIMUTH,ELEVATION in degrees (default front)")
+                   help="front, back, left, right, top, bottom, iso, or AZIMUTH,ELEVATION in degrees from the "
+                        "model's front (azimuth towards its right, elevation towards the top; Blender's views: "
+                        "front looks at the side the model faces); default front")
     p.add_argument("--up", choices=["auto", "y", "z"], default="auto",
                    help="the model's up axis (default auto: the file's convention, z for STL, y otherwise)")
+    p.add_argument("--front", choices=["auto", "+x", "-x", "+y", "-y", "+z", "-z"], default="auto",
+                   help="the axis the model faces (default auto: the bundled examples' own, else +z with y up, "
+                        "as glTF and Blender's exporters, and -y with z up, as in Blender)")
     p.add_argument("--edges", "-e", action="store_true", help="draw polygon edges (quads as quads)")
     p.add_argument("--size", "-s", default=None, metavar="WxH",
                    help="picture size for one mesh (default 800x600), size of each panel for several "
@@ -118,10 +123,11 @@ def run(args) -> int:
     meshes = [load_mesh_arg(a) for a in inputs]
     if args.labels is not None and len(args.labels) != len(meshes):
         raise ParameterError(f"--labels: {len(args.labels)} titles for {len(meshes)} meshes")
-    from .images import facing, up_axis
+    from .images import up_axis
 
     up = up_axis(args.up, meshes[0])
-    common = dict(color=color, reference=reference, view=facing(args.view, meshes[0], up), up=up, edges=args.edges,
+    front = None if args.front == "auto" else args.front
+    common = dict(color=color, reference=reference, view=args.view, up=up, front=front, edges=args.edges,
                   shading=args.shading, colorbar=not args.no_colorbar, cmap=args.cmap, clim=clim)
     if len(meshes) == 1 and grid is None:
         size = parse_size(args.size) if args.size else (800, 600)

@@ -20,7 +20,7 @@ def register(sub) -> None:
         "becomes quads; open boundaries follow the cubic B-spline curve rule; vertex "
         "weights are interpolated.",
     )
-    p.add_argument("input", metavar="IN", help="input mesh (OBJ/PLY/OFF) or example:NAME")
+    p.add_argument("input", metavar="IN", help="input mesh (OBJ, PLY, OFF, STL, glTF/GLB, USD) or example:NAME")
     p.add_argument("output", metavar="OUT", help="output mesh file (format from the extension)")
     p.add_argument("--levels", "-l", type=int, default=1, metavar="N",
                    help="number of subdivision steps, >= 0 (default 1)")

@@ -1,4 +1,4 @@
-"""Reading and writing meshes: OBJ, PLY (ASCII and binary) and OFF.
+"""Reading and writing meshes: OBJ, PLY (ASCII and binary), OFF, STL (ASCII and binary), glTF/GLB and OpenUSD.
 
 Formats
 -------
@@ -17,9 +17,9 @@ ext       read                                        write
 ``.stl``  binary and ASCII (a triangle soup)          binary (``binary=False``:
                                                       ASCII)
 ``.gltf`` glTF 2.0 / GLB (``gltf`` extra)             the input's document with
-``.glb``                                              new positions, or new
+``.glb``                                              new positions, or a new one
 ``.usd``  OpenUSD text and crate (``usd`` extra)      the input's stage with
-``.usda``                                             new points, or new
+``.usda``                                             new points, or a new one
 ``.usdc``
 ========  ==========================================  =====================
 

@@ -46,8 +46,8 @@ __all__ = ["read_gltf", "write_gltf", "write_glb", "mesh_placements"]
 def _lib():
     try:
         import pygltflib
-    except ImportError as exc:
-        raise OptionalDependencyError("pygltflib", "gltf", "writing new glTF documents") from exc
+    except Exception as exc:   # not installed, or installed and broken
+        raise OptionalDependencyError("pygltflib", "gltf", "writing new glTF documents", exc) from exc
     return pygltflib
 
 

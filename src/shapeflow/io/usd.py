@@ -62,8 +62,8 @@ MAX_LAYERS = 1000
 def _pxr():
     try:
         from pxr import Gf, Sdf, Usd, UsdGeom, Vt
-    except ImportError as exc:
-        raise OptionalDependencyError("usd-core", "usd", "reading and writing USD") from exc
+    except Exception as exc:   # not installed, or installed and broken
+        raise OptionalDependencyError("usd-core", "usd", "reading and writing USD", exc) from exc
     return Usd, UsdGeom, Sdf, Gf, Vt
 
 

@@ -49,7 +49,8 @@ def family_colors(n: int, cmap: str = "coolwarm") -> list[tuple[float, float, fl
 # public API
 
 def render(mesh: Mesh, path: PathLike | None = None, *, color: Color = "curvature", reference: Mesh | None = None,
-           view: View = "front", up: str = "y", edges: bool = False, size: Size = (800, 600),
+           view: View = "front", up: str = "y", front: str | None = None, edges: bool = False,
+           size: Size = (800, 600),
            shading: str = "smooth", colorbar: bool = True, cmap: str | None = None,
            clim: Sequence[float] | None = None, label: str | None = None, transparent: bool = False,
            curvature_area: str = "barycentric", edge_color: Color = EDGE_COLOR,
@@ -68,10 +69,16 @@ def render(mesh: Mesh, path: PathLike | None = None, *, color: Color = "curvatur
     reference : Mesh, optional
         For ``color="displacement"``: the mesh before the change (same vertices).
     view : str or (azimuth, elevation)
-        ``"front"``, ``"side"``, ``"back"``, ``"top"``, ``"bottom"``, ``"iso"`` or
-        angles in degrees about the ``up`` axis.
+        ``"front"``, ``"back"``, ``"left"``, ``"right"``, ``"top"``, ``"bottom"``, ``"iso"``
+        (``"side"`` = ``"right"``) or angles in degrees from the model's front: azimuth about the
+        ``up`` axis towards the right, elevation towards the top.  Blender's convention: the
+        front view looks at the side the model faces (docs/cli.md, "Views").
     up : {"y", "z"}
         The model's up axis.
+    front : {"+z", "-z", "+x", "-x", "+y", "-y"}, optional
+        The axis the model faces.  Default: the mesh's ``metadata["front"]`` (the bundled Spot
+        faces ``"-z"``), else ``"+z"`` for ``up="y"`` (glTF's and Blender's exporters' convention)
+        and ``"-y"`` for ``up="z"`` (Blender's own frame).
     edges : bool
         Draw every polygon's edges (quads as quads).
     size : (width, height)
@@ -93,7 +100,7 @@ def render(mesh: Mesh, path: PathLike | None = None, *, color: Color = "curvatur
     numpy.ndarray
         ``(height, width, 3)`` uint8 (``(height, width, 4)`` if transparent).
     """
-    return render_meshes([mesh], path, grid=(1, 1), color=color, reference=reference, view=view, up=up,
+    return render_meshes([mesh], path, grid=(1, 1), color=color, reference=reference, view=view, up=up, front=front,
                          edges=edges, size=size, shading=shading, colorbar=colorbar, cmap=cmap, clim=clim,
                          labels=None if label is None else [label], transparent=transparent,
                          curvature_area=curvature_area, edge_color=edge_color, line_width=line_width,
@@ -104,6 +111,7 @@ def render_meshes(meshes: Sequence[Mesh], path: PathLike | None = None, *,
                   grid: tuple[int, int] | str | None = None, colors: Sequence[Color] | None = None,
                   labels: Sequence[str] | None = None, color: Color | list = "none",
                   reference: Mesh | Sequence[Mesh] | None = None, view: View = "front", up: str = "y",
+                  front: str | None = None,
                   edges: bool | Sequence[bool] = False, size: Size = (400, 400),
                   shading: str | Sequence[str] = "smooth", colorbar: bool = True, cmap: str | None = None,
                   clim: Sequence[float] | None = None, framing: str = "shared", transparent: bool = False,
@@ -135,8 +143,8 @@ def render_meshes(meshes: Sequence[Mesh], path: PathLike | None = None, *,
     framing : {"shared", "rows", "each"}
         One camera fitted to all meshes (sizes comparable), one per row of
         the grid, or one per mesh.
-    color, view, up, colorbar, cmap, clim, transparent, curvature_area, edge_color, line_width
-        As in :func:`render`.
+    color, view, up, front, colorbar, cmap, clim, transparent, curvature_area, edge_color, line_width
+        As in :func:`render` (the first mesh's ``metadata["front"]`` when ``front`` is not given).
     """
     meshes = list(meshes)
     k = len(meshes)
@@ -183,7 +191,9 @@ def render_meshes(meshes: Sequence[Mesh], path: PathLike | None = None, *,
     if view_h < 16:
         raise ParameterError(f"size {size[0]}x{size[1]} leaves no room for the model")
 
-    cams = cameras(meshes, framing, view, up, w / view_h, cols)
+    if front is None:
+        front = meshes[0].metadata.get("front")
+    cams = cameras(meshes, framing, view, up, w / view_h, cols, front)
     nch = 4 if transparent else 3
     bgpix = np.array([255, 255, 255, 0][:nch], np.uint8)
     canvas = np.empty((rows * h + bar_h, cols * w, nch), np.uint8)
@@ -209,7 +219,8 @@ def render_meshes(meshes: Sequence[Mesh], path: PathLike | None = None, *,
             win.close()
         vtk.vtkObject.SetGlobalWarningDisplay(warn_display)
     if show_bar:
-        canvas[rows * h:, :] = colorbar_image(cols * w, bar_h, cmap, clim, bar_label, diverging, transparent)
+        canvas[rows * h:, :] = colorbar_image(cols * w, bar_h, cmap, clim, bar_label, diverging, transparent,
+                                              data_range=field_extent(scalar))
     if path is not None:
         save_png(path, canvas)
     return canvas
@@ -235,6 +246,13 @@ def panel_fields(meshes: list, colors, color, refs: list, curvature_area: str) -
     return [color_field(m, c, r, curvature_area) for m, c, r in zip(meshes, cs, refs)]
 
 
+def field_extent(scalar: list) -> tuple[float, float] | None:
+    """The smallest and largest finite value of the fields (None: no finite value)."""
+    vals = np.concatenate([np.asarray(f.values, dtype=np.float64).ravel() for f in scalar])
+    vals = vals[np.isfinite(vals)]
+    return (float(vals.min()), float(vals.max())) if vals.size else None
+
+
 def shared_range(scalar: list, clim, cmap, diverging: bool):
     """One colour range and colour map for every scalar field (``clim`` checked when given)."""
     if clim is None and all(f.fixed for f in scalar):
@@ -253,19 +271,19 @@ def shared_range(scalar: list, clim, cmap, diverging: bool):
     return clim, cmap
 
 
-def cameras(meshes: list, framing: str, view, up: str, aspect: float, cols: int) -> list:
+def cameras(meshes: list, framing: str, view, up: str, aspect: float, cols: int, front: str | None = None) -> list:
     """One camera per panel: fitted to all meshes, to each row of the grid, or to each mesh."""
     k = len(meshes)
     if framing == "shared":
         allpts = np.concatenate([m.vertices for m in meshes])
-        return [camera(allpts, view, up, aspect)] * k
+        return [camera(allpts, view, up, aspect, front=front)] * k
     if framing == "rows":
         cams = []
         for r0 in range(0, k, cols):
             row = meshes[r0:r0 + cols]
-            cams += [camera(np.concatenate([m.vertices for m in row]), view, up, aspect)] * len(row)
+            cams += [camera(np.concatenate([m.vertices for m in row]), view, up, aspect, front=front)] * len(row)
         return cams
-    return [camera(m.vertices, view, up, aspect) for m in meshes]
+    return [camera(m.vertices, view, up, aspect, front=front) for m in meshes]
 
 
 def grid_shape(grid, k: int) -> tuple[int, int]:

@@ -15,7 +15,10 @@ class RenderBackendError(OptionalDependencyError):
 
     def __init__(self, message: str):
         ImportError.__init__(self, message)
-        self.extra = "render"
+        self.module, self.extra, self.feature, self.cause = "vtk", "render", "rendering", message
+
+    def __reduce__(self):
+        return (type(self), (str(self),))
 
 
 # --------------------------------------------------------------------------
@@ -124,8 +127,8 @@ def vtk_classes():
             vtkRenderWindow,
             vtkWindowToImageFilter,
         )
-    except ImportError as exc:
-        raise OptionalDependencyError("vtk", "render", "rendering") from exc
+    except Exception as exc:   # not installed, or installed and broken (e.g. a missing libGL/libX11)
+        raise OptionalDependencyError("vtk", "render", "rendering", exc) from exc
     from types import SimpleNamespace
 
     import vtkmodules.vtkRenderingOpenGL2 as opengl2
@@ -141,16 +144,16 @@ def vtk_classes():
 def pil_modules():
     try:
         from PIL import Image, ImageDraw, ImageFont
-    except ImportError as exc:
-        raise OptionalDependencyError("pillow", "render", "rendering") from exc
+    except Exception as exc:
+        raise OptionalDependencyError("pillow", "render", "rendering", exc) from exc
     return Image, ImageDraw, ImageFont
 
 
 def colormap(name: str):
     try:
         import matplotlib
-    except ImportError as exc:
-        raise OptionalDependencyError("matplotlib", "render", "colour maps") from exc
+    except Exception as exc:
+        raise OptionalDependencyError("matplotlib", "render", "colour maps", exc) from exc
     try:
         return matplotlib.colormaps[name]
     except KeyError:
@@ -162,7 +165,7 @@ def to_rgb(spec) -> tuple[float, float, float] | None:
     if isinstance(spec, str):
         try:
             from matplotlib.colors import to_rgb
-        except ImportError:
+        except Exception:
             return None
         try:
             return tuple(float(c) for c in to_rgb(spec))

@@ -21,7 +21,7 @@ def load_font(size: int):
 
             cand = os.path.join(matplotlib.get_data_path(), "fonts", "ttf", "DejaVuSans.ttf")
             path = cand if os.path.exists(cand) else None
-        except ImportError:
+        except Exception:   # noqa: BLE001 - no matplotlib, or a broken one: Pillow's own font
             pass
         _FONT_PATH.append(path)
     if _FONT_PATH[0]:
@@ -51,9 +51,25 @@ def colorbar_height(width: int) -> int:
     return int(round(font_px * 1.5 + max(8, 0.9 * font_px) + font_px * 1.6 + 6))
 
 
+def tick_labels(clim, diverging: bool, data_range=None) -> list[tuple[float, str]]:
+    """The colour bar's ticks: (value, text).  An end the data pass is marked ``≤ lo`` / ``≥ hi``:
+    the colours there stand for every value beyond it (the range is clipped)."""
+    lo, hi = float(clim[0]), float(clim[1])
+    ticks = [(lo, format_tick(lo)), (hi, format_tick(hi))]
+    if diverging and lo < 0 < hi:
+        ticks.insert(1, (0.0, "0"))
+    if data_range is not None:
+        if data_range[0] < lo:
+            ticks[0] = (lo, f"≤ {format_tick(lo)}")
+        if data_range[1] > hi:
+            ticks[-1] = (hi, f"≥ {format_tick(hi)}")
+    return ticks
+
+
 def colorbar_image(width: int, height: int, cmap_name: str, clim, label: str, diverging: bool,
-              transparent: bool) -> np.ndarray:
-    """A horizontal colour bar: the title above it, tick values under it."""
+                   transparent: bool, data_range=None) -> np.ndarray:
+    """A horizontal colour bar: the title above it, tick values under it.  Where the data pass an end
+    of the range (``data_range``), that end gets a triangle in its colour and a ``≤``/``≥`` label."""
     Image, ImageDraw, _ = pil_modules()
     mode = "RGBA" if transparent else "RGB"
     bg = (255, 255, 255, 0) if transparent else (255, 255, 255)
@@ -76,14 +92,15 @@ def colorbar_image(width: int, height: int, cmap_name: str, clim, label: str, di
         strip = np.concatenate([strip, np.full(strip.shape[:2] + (1,), 255, np.uint8)], axis=2)
     im.paste(Image.fromarray(strip, mode), (x0, y0))
     draw.rectangle([x0 - 1, y0 - 1, x0 + bar_w, y0 + bar_h], outline=ink)
-    ticks = [clim[0], clim[1]]
-    if diverging and clim[0] < 0 < clim[1]:
-        ticks.insert(1, 0.0)
-    for t in ticks:
+    ticks = tick_labels(clim, diverging, data_range)
+    for end, (x_base, x_tip) in ((0, (x0 - 2, x0 - 2 - bar_h)), (1, (x0 + bar_w + 1, x0 + bar_w + 1 + bar_h))):
+        if ticks[-end][1][:1] in "≤≥":          # clipped: a triangle beyond the bar in the end's colour
+            colour = tuple(int(c) for c in grad[-end]) + ((255,) if transparent else ())
+            draw.polygon([(x_base, y0), (x_tip, y0 + bar_h / 2), (x_base, y0 + bar_h)], fill=colour, outline=ink)
+    for t, txt in ticks:
         fx = (t - clim[0]) / (clim[1] - clim[0])
         xp = x0 + int(round(fx * (bar_w - 1)))
         draw.line([xp, y0 + bar_h, xp, y0 + bar_h + 3], fill=ink)
-        txt = format_tick(t)
         tw = draw.textlength(txt, font=font)
         draw.text((min(max(xp - tw / 2, 0), width - tw), y0 + bar_h + 4), txt, fill=ink, font=font)
     return np.asarray(im)

@@ -10,7 +10,7 @@ from ..errors import ParameterError
 from ..geometry.normals import vertex_normals
 from .backend import colormap, window_class
 from .fields import Field
-from .style import BACKGROUND, CLAY, FRAMES, MARGIN, VIEW_ANGLE, VIEWS
+from .style import BACKGROUND, CLAY, MARGIN, VIEW_ANGLE, VIEWS, frame
 
 # --------------------------------------------------------------------------
 # geometry -> VTK
@@ -104,7 +104,7 @@ def view_angles(view) -> tuple[float, float]:
             az, el = (float(x) for x in v.split(","))
         except ValueError:
             raise ParameterError(f"unknown view {view!r}: use {', '.join(VIEWS)} or 'AZIMUTH,ELEVATION' "
-                                 "in degrees") from None
+                                 "in degrees from the model's front") from None
         return check_angles(az, el)
     try:
         az, el = (float(x) for x in view)
@@ -131,12 +131,11 @@ class Camera:
 
 
 def camera(points: np.ndarray, view, up: str, aspect: float, margin: float = MARGIN,
-            angle: float = VIEW_ANGLE) -> Camera:
-    """A perspective camera looking from ``view`` that fits every point in the panel."""
-    if up not in FRAMES:
-        raise ParameterError(f"up must be 'y' or 'z', got {up!r}")
+            angle: float = VIEW_ANGLE, front: str | None = None) -> Camera:
+    """A perspective camera looking from ``view`` (angles from the model's ``front``) that fits every
+    point in the panel."""
+    R, U, F = frame(up, front)
     az, el = (math.radians(a) for a in view_angles(view))
-    R, U, F = FRAMES[up]
     c = math.sin(az) * math.cos(el) * R + math.sin(el) * U + math.cos(az) * math.cos(el) * F  # towards camera
     u = -math.sin(az) * math.sin(el) * R + math.cos(el) * U - math.cos(az) * math.sin(el) * F
     r = np.cross(u, c)

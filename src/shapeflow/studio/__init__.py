@@ -16,7 +16,7 @@ def __getattr__(name):            # the server needs aiohttp: imported on first 
 
         try:
             from . import run
-        except ImportError as exc:
-            raise OptionalDependencyError("aiohttp", "studio", "the studio's server") from exc
+        except Exception as exc:   # not installed, or installed and broken
+            raise OptionalDependencyError("aiohttp", "studio", "the studio's server", exc) from exc
         return getattr(run, name)
     raise AttributeError(name)

@@ -36,8 +36,8 @@ def chromium_page(url: str, *, size=(1100, 760), ready: str | None = READY, time
         from selenium import webdriver
         from selenium.webdriver.chrome.options import Options
         from selenium.webdriver.chrome.service import Service
-    except ImportError as exc:
-        raise OptionalDependencyError("selenium", "test", "driving the studio in a browser") from exc
+    except Exception as exc:   # not installed, or installed and broken
+        raise OptionalDependencyError("selenium", "test", "driving the studio in a browser", exc) from exc
     binary, driver = chromium()
     if not (binary and driver):
         raise FileNotFoundError("driving the studio needs chromium and chromedriver on PATH "

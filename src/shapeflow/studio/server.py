@@ -71,8 +71,8 @@ FLOAT32_MAX = float(np.finfo(np.float32).max)
 def _web():
     try:
         from aiohttp import WSMsgType, web
-    except ImportError as exc:
-        raise OptionalDependencyError("aiohttp", "studio", "the studio's server") from exc
+    except Exception as exc:   # not installed, or installed and broken
+        raise OptionalDependencyError("aiohttp", "studio", "the studio's server", exc) from exc
     return web, WSMsgType
 
 
