@@ -62,11 +62,12 @@ def test_the_error_survives_pickling_with_its_message():
 
 def test_the_command_line_says_it_in_one_line(broken, tmp_path, capsys):
     broken("pygltflib", "raise ImportError('libfoo.so.3: cannot open shared object file')")
-    src = tmp_path / "in.glb"
-    src.write_bytes(b"glTF")
-    assert main(["info", str(src)]) == 2
+    src = tmp_path / "in.obj"                    # a new glTF document is made with pygltflib
+    src.write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    assert main(["smooth", str(src), str(tmp_path / "out.glb"), "--strength", "1"]) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("shapeflow info: error: ")
+    assert err.count("\n") == 1 and err.startswith("shapeflow smooth: error: ")
+    assert not (tmp_path / "out.glb").exists()
     assert "ImportError: libfoo.so.3: cannot open shared object file" in err
 
 
