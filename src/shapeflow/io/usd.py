@@ -323,12 +323,14 @@ def _update(stage, layout: list, mesh: Mesh, Usd, UsdGeom, Vt) -> None:
         if extent:
             changed += _set(prim.GetExtentAttr(), extent, "extent")
         if changed:
-            frozen.append(f"{item['path']} at time {item['time']:g} ({', '.join(changed)})")
+            when = "the default time" if item["time"] is None else f"time {item['time']:g}"
+            frozen.append(f"{item['path']} at {when} ({', '.join(changed)})")
         base, fbase, cbase = base + n, fbase + nf, cbase + nc
     if frozen:
         warnings.warn(DataLossWarning(
             "USD animation not kept: time-sampled attributes written as the one pose that was read "
-            "(the earliest time sample of the points), the same at every time: " + "; ".join(frozen)),
+            "(at the earliest time sample of the points, if they have samples), the same at every time: "
+            + "; ".join(frozen)),
             stacklevel=5)
 
 
