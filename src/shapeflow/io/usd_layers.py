@@ -113,7 +113,9 @@ def _references(layer, Sdf, every: bool):
             return
         where = f"<{spec.path}>"
         if spec.path != Sdf.Path.absoluteRootPath:
-            for kind, proxy in (("reference", spec.referenceList), ("payload", spec.payloadList)):
+            arcs = ([("reference", spec.referenceList)] if spec.hasReferences else []) + (
+                [("payload", spec.payloadList)] if spec.hasPayloads else [])
+            for kind, proxy in arcs:
                 items = (*proxy.explicitItems, *proxy.addedItems, *proxy.prependedItems, *proxy.appendedItems,
                          *proxy.orderedItems)
                 for item in items:
