@@ -12,6 +12,7 @@ from conftest import MESHES, requires_shared
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from meshgen import grid, icosphere, random_rotation
+from mutation import mutate, numpy_draw
 
 import shapeflow as sf
 from shapeflow.errors import MeshError, ParameterError
@@ -325,41 +326,6 @@ def test_cli_subprocess_has_no_traceback(tmp_path):
 # reader fuzzing: >= 10,000 mutated real files, only MeshError, never a hang
 # ----------------------------------------------------------------------------
 
-TOKENS = [b"nan", b"inf", b"-inf", b"1e999", b"-0", b"99999999999999999999", b"-5", b"0x10", b"", b" ", b"\n",
-          b"f", b"v", b"//", b"/", b"\\\n", b"element vertex 99999999999\n", b"end_header\n",
-          b"property list uchar int",
-          b"\x00", b"\xff\xfe", b"3 0 1 2\n", b"4 0 0 0 0\n"]
-
-
-def _mutate(data: bytes, rng) -> bytes:
-    b = bytearray(data)
-    for _ in range(int(rng.integers(1, 4))):
-        op = int(rng.integers(0, 6))
-        if not b:
-            b = bytearray(TOKENS[int(rng.integers(len(TOKENS)))])
-            continue
-        i = int(rng.integers(0, len(b)))
-        if op == 0:
-            b = b[:i]                                             # truncate
-        elif op == 1:
-            b[i] = int(rng.integers(0, 256))                       # flip a byte
-        elif op == 2:
-            j = int(rng.integers(i, min(len(b), i + 200) + 1))
-            del b[i:j]                                             # delete a chunk
-        elif op == 3:
-            b[i:i] = TOKENS[int(rng.integers(len(TOKENS)))]       # insert a nasty token
-        elif op == 4:
-            j = int(rng.integers(0, len(b)))
-            k = int(rng.integers(j, min(len(b), j + 300) + 1))
-            b[i:i] = b[j:k]                                        # duplicate a chunk
-        else:
-            nl = [k for k in range(len(b)) if b[k] == 10][:2000]
-            if len(nl) > 2:
-                a_, z_ = sorted(rng.choice(nl, 2, replace=False))
-                b = b[:a_] + b[z_:]                                # drop whole lines
-    return bytes(b)
-
-
 @requires_shared
 def test_fuzz_readers_with_mutated_real_files(tmp_path):
     seeds = []
@@ -372,13 +338,13 @@ def test_fuzz_readers_with_mutated_real_files(tmp_path):
             sf.save(p, m, binary=binary)
             seeds.append((ext, p.read_bytes()))
         seeds.append((".obj", (MESHES / name).read_bytes()))
-    rng = np.random.default_rng(20261121)
+    draw = numpy_draw(np.random.default_rng(20261121))
     n_cases = int(os.environ.get("SHAPEFLOW_FUZZ_CASES", "10000"))
     loaded = 0
     for i in range(n_cases):
         ext, data = seeds[i % len(seeds)]
         p = tmp_path / f"case{ext}"
-        p.write_bytes(_mutate(data, rng))
+        p.write_bytes(mutate(data, draw))
         try:
             m = sf.load(p)
         except MeshError as exc:

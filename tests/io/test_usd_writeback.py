@@ -237,3 +237,23 @@ def test_a_single_layer_is_written_as_it_is(tmp_path):
     attr = layer.GetAttributeAtPath("/Prop.inputs:file")
     assert attr.default.path == "./tex/wood.png"
     assert set(layer.GetPrimAtPath("/Prop").variantSets["look"].variants.keys()) == {"red", "blue"}
+
+
+def test_time_sampled_normals_on_static_points(tmp_path):
+    path = tmp_path / "n.usda"
+    stage = Usd.Stage.CreateNew(str(path))
+    ball = icosphere(1)
+    m = define(stage, "/M", ball)
+    for t in (1.0, 2.0):
+        m.GetNormalsAttr().Set(vec3(ball.vertices), t)
+    m.SetNormalsInterpolation(UsdGeom.Tokens.vertex)
+    stage.GetRootLayer().Save()
+    out = tmp_path / "out.usda"
+    with pytest.warns(DataLossWarning, match=r"/M at the default time \(normals: 2 time samples\)"):
+        sf.save(out, sf.smooth(sf.load(path), 1.0))
+    written = Usd.Stage.Open(str(out))
+    prim = UsdGeom.Mesh(written.GetPrimAtPath("/M"))
+    P, c, i, _ = file_data(prim.GetPrim())
+    assert prim.GetNormalsAttr().GetNumTimeSamples() == 0
+    np.testing.assert_allclose(np.asarray(prim.GetNormalsAttr().Get(1.0), np.float64),
+                               hand_vertex_normals(P, c, i, False), atol=2e-6)

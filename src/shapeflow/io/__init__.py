@@ -30,15 +30,21 @@ triangulated, face order and corner order are kept, triangles, quads and
 n-gons may be interleaved in any order, and every vertex is kept in file order
 (unreferenced ones included).  Writers print floats with Python's shortest
 round-trip ``repr``, so text round trips are bit-exact; binary PLY stores
-float64.
+float64 coordinates for a mesh from elsewhere and a PLY file's own types when
+it is written back (:mod:`shapeflow.io.ply_write`).
 
-Vertex attributes (e.g. the ``"weight"`` attribute) are kept by PLY only:
-every 1-D attribute is written as a ``double`` vertex property of the same
-name, and every scalar vertex property other than ``x y z`` is read back as a
-float64 attribute.  OBJ and OFF have no place for them: :func:`save` drops the
-attributes silently (as it does multi-column attributes for PLY).  Weights can
+Vertex attributes (e.g. the ``"weight"`` attribute) are kept by PLY: each is
+a vertex property of the same name in its type (a multi-column one a
+property per column).  OBJ and OFF have no place for them: :func:`save` names
+what it drops in a :class:`~shapeflow.errors.DataLossWarning`.  Weights can
 also travel in side files (``.npy`` or ``.txt``, one number a line) with
 :func:`load_weights` and :func:`save_weights`.
+
+Files that refer to other files (glTF buffers and images, USD sublayers,
+references, payloads, clips and asset paths): ``load(path,
+external_files=False)`` refuses them by name, for files from elsewhere;
+with the default ``True`` they are read, USD composing only layers inside
+the file's own folder (:mod:`shapeflow.io.usd_layers`).
 
 OBJ details: ``v x y z [w]`` and ``v x y z r g b [a]`` (x y z are used);
 ``f`` (and the old ``fo``) with ``a``, ``a/b``, ``a//c`` and ``a/b/c`` corners
@@ -57,7 +63,8 @@ Anything wrong with a file raises :class:`~shapeflow.errors.MeshError` whose
 message starts with the file name, then where: ``line N`` for text formats,
 the element for binary PLY (``face 17``).  A missing or unreadable file is a
 MeshError too (the OSError, e.g. FileNotFoundError, is named in the message
-and chained as ``__cause__``).
+and chained as ``__cause__``), and so is any other failure of a reader or
+its library (out of memory, nested too deeply, pxr's errors), chained to it.
 
 Saving is atomic: the data go to a temporary file in the target directory,
 which is flushed, fsync'ed and renamed onto the target; on any error the

@@ -13,7 +13,7 @@ reversed, so that every face of the mesh winds counter-clockwise around its outw
 Time: a prim is read at its default time, or, when its points are time-sampled, at their
 earliest time sample (points, topology, normals, primvars and transform all at that time).
 
-Files that refer to other files: the file's own layer is opened first (``Sdf.Layer``, no
+Files that refer to other files (:mod:`.usd_layers`): the file's own layer is opened first (``Sdf.Layer``, no
 composition) and every path it refers to is checked before any stage is composed.  With
 ``external_files=False`` any such path is refused (sublayers, references, payloads, value clips,
 asset-valued attributes and metadata).  With ``True`` the layers it composes (sublayers,
@@ -40,196 +40,18 @@ Any other mesh is written as a new stage with one ``Mesh`` prim (n-gons kept, ``
 from __future__ import annotations
 
 import os
-import stat
 import tempfile
 import warnings
 from typing import BinaryIO
 
 import numpy as np
 
-from ..errors import DataLossWarning, MeshError, OptionalDependencyError
+from ..errors import DataLossWarning, MeshError
 from ..geometry.placement import place, place_normals, unplace, unplace_normals
 from ..mesh import Mesh
+from .usd_layers import open_stage, pxr_error, pxr_modules
 
 __all__ = ["read_usd", "write_usd"]
-
-#: the layers a USD file may compose (other formats could refer to files that are not checked)
-LAYER_EXTENSIONS = (".usd", ".usda", ".usdc")
-#: at most this many layers are opened for one file
-MAX_LAYERS = 1000
-
-
-def _pxr():
-    try:
-        from pxr import Gf, Sdf, Usd, UsdGeom, Vt
-    except Exception as exc:   # not installed, or installed and broken
-        raise OptionalDependencyError("usd-core", "usd", "reading and writing USD", exc) from exc
-    return Usd, UsdGeom, Sdf, Gf, Vt
-
-
-def _pxr_error(exc: Exception) -> str:
-    text = " ".join(str(exc).split())
-    return f"{type(exc).__name__}: {text[:200]}"
-
-
-# --------------------------------------------------------------------------
-# the files a layer refers to, checked before anything is composed
-# --------------------------------------------------------------------------
-
-def _open_layer(Sdf, path: str, name: str, what: str):
-    try:
-        layer = Sdf.Layer.FindOrOpen(path)
-    except Exception as exc:   # pxr raises Tf.ErrorException on a malformed file
-        raise MeshError(f"{name}: {what} is not a readable USD file ({_pxr_error(exc)})") from exc
-    if layer is None:
-        raise MeshError(f"{name}: {what} is not a readable USD file")
-    return layer
-
-
-def _asset_paths(value, Sdf):
-    """The asset paths held in a metadata or attribute value (dictionaries and arrays walked)."""
-    stack = [value]
-    while stack:
-        v = stack.pop()
-        if isinstance(v, Sdf.AssetPath):
-            if v.path:
-                yield v.path
-        elif isinstance(v, dict):
-            stack.extend(v.values())
-        elif isinstance(v, (list, tuple, Sdf.AssetPathArray)):
-            stack.extend(v)
-
-
-def _prim_specs(layer):
-    """Every prim spec of the layer, variants' included (an explicit stack: no recursion limit)."""
-    stack = [layer.pseudoRoot]
-    while stack:
-        spec = stack.pop()
-        yield spec
-        stack.extend(spec.nameChildren.values())
-        for vset in spec.variantSets.values():
-            stack.extend(v.primSpec for v in vset.variants.values())
-
-
-_COMPOSITION_KEYS = {"references", "payload", "clips", "subLayers"}
-
-
-def _references(layer, Sdf, every: bool):
-    """(kind, where, path) for the files the layer refers to: composition arcs and clips; with
-    ``every`` also asset-valued attributes and metadata."""
-    for p in layer.subLayerPaths:
-        yield "sublayer", "the layer's subLayers", p
-    asset_types = (Sdf.ValueTypeNames.Asset, Sdf.ValueTypeNames.AssetArray)
-    for spec in _prim_specs(layer):
-        where = f"<{spec.path}>"
-        if spec.path != Sdf.Path.absoluteRootPath:
-            for kind, proxy in (("reference", spec.referenceList), ("payload", spec.payloadList)):
-                items = (*proxy.explicitItems, *proxy.addedItems, *proxy.prependedItems, *proxy.appendedItems,
-                         *proxy.orderedItems)
-                for item in items:
-                    if item.assetPath:
-                        yield kind, where, item.assetPath
-            clips = spec.GetInfo("clips") if spec.HasInfo("clips") else {}
-            for set_name, clip in (clips.items() if isinstance(clips, dict) else ()):
-                if isinstance(clip, dict) and clip.get("templateAssetPath"):
-                    yield "clip template", f"{where} clip set '{set_name}'", str(clip["templateAssetPath"])
-                for key in ("assetPaths", "manifestAssetPath"):
-                    for p in _asset_paths(clip.get(key) if isinstance(clip, dict) else None, Sdf):
-                        yield "clip", f"{where} clip set '{set_name}'", p
-        if not every:
-            continue
-        for key in spec.ListInfoKeys():
-            if key not in _COMPOSITION_KEYS:
-                for p in _asset_paths(spec.GetInfo(key), Sdf):
-                    yield "asset", f"{where} metadata '{key}'", p
-        for prop in spec.properties:
-            pwhere = f"<{prop.path}>"
-            for key in prop.ListInfoKeys():
-                if key not in ("default", "timeSamples"):
-                    for p in _asset_paths(prop.GetInfo(key), Sdf):
-                        yield "asset", f"{pwhere} metadata '{key}'", p
-            if isinstance(prop, Sdf.AttributeSpec) and prop.typeName in asset_types:
-                values = [prop.default] + [layer.QueryTimeSample(prop.path, t)
-                                           for t in layer.ListTimeSamplesForPath(prop.path)]
-                for p in _asset_paths(values, Sdf):
-                    yield "asset", pwhere, p
-
-
-def _inside(name: str, folder: str, layer, kind: str, where: str, path: str) -> str:
-    """The identifier of the layer ``path`` (found in ``layer``) names, if it is a USD file inside
-    ``folder``; otherwise a MeshError naming it."""
-    def refuse(why):
-        return MeshError(f"{name}: {_layer_name(layer, name)} {where}: the {kind} @{path}@ {why}; "
-                         "only USD files inside the file's own folder are composed")
-    if path.startswith("`"):
-        raise refuse("is a variable expression")
-    if kind == "clip template":
-        raise refuse("names files by a pattern, which cannot be checked")
-    if ":" in path:
-        raise refuse("is not a plain relative file path (a URI, a drive or format arguments)")
-    if os.path.isabs(path):
-        raise refuse("is an absolute path")
-    anchored = os.path.normpath(os.path.join(os.path.dirname(layer.realPath), path))
-    real = os.path.realpath(anchored)
-    if os.path.commonpath([real, folder]) != folder:
-        raise refuse("leaves the folder" + ("" if real == os.path.normpath(anchored) else " (a symbolic link)"))
-    if os.path.splitext(anchored)[1].lower() not in LAYER_EXTENSIONS:
-        raise refuse(f"is not a USD layer ({', '.join(LAYER_EXTENSIONS)})")
-    try:
-        mode = os.stat(real).st_mode
-    except OSError as exc:
-        raise refuse(f"cannot be read ({exc.strerror or exc})") from None
-    if not stat.S_ISREG(mode):
-        raise refuse("is not a regular file")
-    return anchored
-
-
-def _layer_name(layer, name: str) -> str:
-    real = os.path.realpath(layer.realPath)
-    return "the layer" if real == os.path.realpath(name) else f"layer {os.path.basename(real)!r}"
-
-
-def _checked_layers(name: str, external_files: bool, Sdf):
-    """The file's layer and every layer it composes, each opened only after its path was checked."""
-    root = _open_layer(Sdf, name, name, "the file")
-    folder = os.path.realpath(os.path.dirname(os.path.abspath(name)))
-    layers = {os.path.realpath(root.realPath): root}
-    queue = [root]
-    while queue:
-        layer = queue.pop()
-        for kind, where, path in _references(layer, Sdf, every=not external_files):
-            if not external_files:
-                raise MeshError(f"{name}: {_layer_name(layer, name)} {where} refers to the file @{path}@ ({kind}); "
-                                "files that refer to other files are not accepted here")
-            if kind == "asset":
-                continue
-            anchored = _inside(name, folder, layer, kind, where, path)
-            real = os.path.realpath(anchored)
-            if real in layers:
-                continue
-            if len(layers) >= MAX_LAYERS:
-                raise MeshError(f"{name}: composes more than {MAX_LAYERS} layers")
-            dep = _open_layer(Sdf, anchored, name, f"the {kind} @{path}@")
-            layers[real] = dep
-            queue.append(dep)
-    return root, list(layers.values())
-
-
-def _stage(name: str, external_files: bool):
-    Usd, _, Sdf, *_ = _pxr()
-    root, layers = _checked_layers(name, external_files, Sdf)
-    try:
-        stage = Usd.Stage.Open(root, Usd.Stage.LoadAll)
-    except Exception as exc:
-        raise MeshError(f"{name}: the USD stage cannot be composed ({_pxr_error(exc)})") from exc
-    if stage is None:
-        raise MeshError(f"{name}: the USD stage cannot be composed")
-    checked = {os.path.realpath(x.realPath) for x in layers}
-    for used in stage.GetUsedLayers():   # composition opened only what was checked (the session layer aside)
-        if not used.anonymous and os.path.realpath(used.realPath) not in checked:
-            raise MeshError(f"{name}: composing the stage opened {used.identifier!r}, which was not checked")
-    return stage, root, layers
-
 
 # --------------------------------------------------------------------------
 # reading
@@ -300,6 +122,8 @@ def _array(value, name: str, prim, what: str, dtype, width: int | None):
         a = np.asarray(value, dtype=dtype)
     except (TypeError, ValueError) as exc:
         raise MeshError(f"{name}: {prim.GetPath()}: {what} is not an array of numbers") from exc
+    if width is not None and a.ndim == 1 and a.size == 0:
+        a = a.reshape(0, width)
     if (width is None and a.ndim != 1) or (width is not None and (a.ndim != 2 or a.shape[1] != width)):
         raise MeshError(f"{name}: {prim.GetPath()}: {what} has the shape {a.shape}")
     return a
@@ -312,51 +136,71 @@ def _time(mesh, Usd):
 
 
 def read_usd(data: bytes, name: str, *, external_files: bool = True) -> Mesh:
-    Usd, UsdGeom, *_ = _pxr()
-    stage, root, layers = _stage(name, external_files)
-    V, S, F, uv, nrm, col, obj, layout = [], [], [], [], [], [], [], []
+    Usd, UsdGeom, *_ = pxr_modules()
+    if data.startswith(b"#usda"):      # a text layer: UTF-8, as USD requires
+        try:
+            data.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            line = data.count(b"\n", 0, exc.start) + 1
+            raise MeshError(f"{name}: line {line}: not UTF-8 text") from None
+    stage, root, layers = open_stage(name, external_files)
+    parts = {k: [] for k in ("V", "S", "F", "uv", "nrm", "col", "obj", "layout")}
     base = 0
     for prim in stage.Traverse():
         if not prim.IsA(UsdGeom.Mesh):
             continue
-        mesh = UsdGeom.Mesh(prim)
-        t, when = _time(mesh, Usd)
-        points = mesh.GetPointsAttr().Get(t)
-        counts = mesh.GetFaceVertexCountsAttr().Get(t)
-        indices = mesh.GetFaceVertexIndicesAttr().Get(t)
-        if points is None or counts is None or indices is None or len(points) == 0:
-            continue
-        P = _array(points, name, prim, "points", np.float64, 3)
-        c = _array(counts, name, prim, "faceVertexCounts", np.int64, None)
-        i = _array(indices, name, prim, "faceVertexIndices", np.int64, None)
-        if (c < 0).any() or c.sum() != i.size or (i.size and (i.min() < 0 or i.max() >= P.shape[0])):
-            raise MeshError(f"{name}: {prim.GetPath()}: faceVertexCounts and faceVertexIndices do not agree "
-                            f"with its {P.shape[0]} points")
-        M = _world(UsdGeom, prim, t)
-        if not np.isfinite(M).all() or abs(np.linalg.det(M[:3, :3])) < 1e-300:
-            raise MeshError(f"{name}: {prim.GetPath()} has a singular or non-finite transform")
-        left = mesh.GetOrientationAttr().Get(t) == UsdGeom.Tokens.leftHanded
-        flip = bool(left) != bool(np.linalg.det(M[:3, :3]) < 0)
-        perm = reversal(c) if flip else np.arange(i.size)
-        V.append(place(P, M))
-        S.append(c)
-        F.append(i[perm] + base)
-        obj.append(np.full(c.size, len(layout)))
-        st = _per_corner(*_primvar(UsdGeom, prim, "st", t), c, i)
-        uv.append(st[perm, :2] if st is not None and st.shape[1] >= 2 else None)
-        n_vals, n_interp, authored = _normals(UsdGeom, mesh, t)
-        nn = _per_corner(n_vals, n_interp, c, i)
-        nrm.append(place_normals(nn[perm], M) if nn is not None and nn.shape[1] == 3 else None)
-        dc, dc_interp = _primvar(UsdGeom, prim, "displayColor", t)
-        dc = _per_corner(dc, dc_interp, c, i) if dc_interp in ("vertex", "varying") else None
-        col.append(dc[perm] if dc is not None else None)
-        layout.append({"path": str(prim.GetPath()), "vertices": P.shape[0], "faces": c.size, "matrix": M,
-                       "flip": flip, "normals": authored, "time": when})
-        base += P.shape[0]
-    if not V:
+        try:
+            base += _read_prim(name, prim, base, parts, Usd, UsdGeom)
+        except (RuntimeError, UnicodeError) as exc:     # pxr's errors reading a value (Tf.ErrorException)
+            raise MeshError(f"{name}: {prim.GetPath()} cannot be read ({pxr_error(exc)})") from exc
+    if not parts["V"]:
         raise MeshError(f"{name}: no Mesh prim with points and faces in the USD stage")
-    text = root.ExportToString() if len(layers) == 1 else stage.Flatten().ExportToString()
-    return _assemble(name, text, V, S, F, uv, nrm, col, obj, layout)
+    try:      # the text written back (a damaged crate file may hold strings that are not UTF-8)
+        text = root.ExportToString() if len(layers) == 1 else stage.Flatten().ExportToString()
+    except (RuntimeError, UnicodeError) as exc:
+        raise MeshError(f"{name}: the stage cannot be written as text ({pxr_error(exc)})") from exc
+    return _assemble(name, text, *parts.values())
+
+
+def _read_prim(name, prim, base: int, parts: dict, Usd, UsdGeom) -> int:
+    """Append one Mesh prim to ``parts`` (placed in the world, faces counter-clockwise); returns its
+    number of points (0: a prim without points or faces, skipped)."""
+    mesh = UsdGeom.Mesh(prim)
+    t, when = _time(mesh, Usd)
+    points = mesh.GetPointsAttr().Get(t)
+    counts = mesh.GetFaceVertexCountsAttr().Get(t)
+    indices = mesh.GetFaceVertexIndicesAttr().Get(t)
+    if points is None or counts is None or indices is None:
+        return 0
+    P = _array(points, name, prim, "points", np.float64, 3)
+    c = _array(counts, name, prim, "faceVertexCounts", np.int64, None)
+    i = _array(indices, name, prim, "faceVertexIndices", np.int64, None)
+    if P.shape[0] == 0:
+        return 0
+    if (c < 0).any() or c.sum() != i.size or (i.size and (i.min() < 0 or i.max() >= P.shape[0])):
+        raise MeshError(f"{name}: {prim.GetPath()}: faceVertexCounts and faceVertexIndices do not agree "
+                        f"with its {P.shape[0]} points")
+    M = _world(UsdGeom, prim, t)
+    if not np.isfinite(M).all() or abs(np.linalg.det(M[:3, :3])) < 1e-300:
+        raise MeshError(f"{name}: {prim.GetPath()} has a singular or non-finite transform")
+    left = mesh.GetOrientationAttr().Get(t) == UsdGeom.Tokens.leftHanded
+    flip = bool(left) != bool(np.linalg.det(M[:3, :3]) < 0)
+    perm = reversal(c) if flip else np.arange(i.size)
+    parts["V"].append(place(P, M))
+    parts["S"].append(c)
+    parts["F"].append(i[perm] + base)
+    parts["obj"].append(np.full(c.size, len(parts["layout"])))
+    st = _per_corner(*_primvar(UsdGeom, prim, "st", t), c, i)
+    parts["uv"].append(st[perm, :2] if st is not None and st.shape[1] >= 2 else None)
+    n_vals, n_interp, authored = _normals(UsdGeom, mesh, t)
+    nn = _per_corner(n_vals, n_interp, c, i)
+    parts["nrm"].append(place_normals(nn[perm], M) if nn is not None and nn.shape[1] == 3 else None)
+    dc, dc_interp = _primvar(UsdGeom, prim, "displayColor", t)
+    dc = _per_corner(dc, dc_interp, c, i) if dc_interp in ("vertex", "varying") else None
+    parts["col"].append(dc[perm] if dc is not None else None)
+    parts["layout"].append({"path": str(prim.GetPath()), "vertices": P.shape[0], "faces": c.size, "matrix": M,
+                            "flip": flip, "normals": authored, "time": when})
+    return P.shape[0]
 
 
 def _assemble(name, text, V, S, F, uv, nrm, col, obj, layout) -> Mesh:
@@ -389,7 +233,7 @@ def _assemble(name, text, V, S, F, uv, nrm, col, obj, layout) -> Mesh:
 
 def write_usd(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None, ext: str = ".usda") -> None:
     """The stage as USD text (``.usda``) or crate (``.usdc``; ``.usd`` is crate)."""
-    Usd, UsdGeom, Sdf, _, Vt = _pxr()
+    Usd, UsdGeom, Sdf, _, Vt = pxr_modules()
     meta = mesh.metadata.get("usd", {})
     same = "layer" in meta and np.array_equal(meta.get("faces", np.zeros(0)), mesh.face_indices)
     if "layer" in meta and not same:
@@ -479,12 +323,14 @@ def _update(stage, layout: list, mesh: Mesh, Usd, UsdGeom, Vt) -> None:
         if extent:
             changed += _set(prim.GetExtentAttr(), extent, "extent")
         if changed:
-            frozen.append(f"{item['path']} at time {item['time']:g} ({', '.join(changed)})")
+            when = "the default time" if item["time"] is None else f"time {item['time']:g}"
+            frozen.append(f"{item['path']} at {when} ({', '.join(changed)})")
         base, fbase, cbase = base + n, fbase + nf, cbase + nc
     if frozen:
         warnings.warn(DataLossWarning(
             "USD animation not kept: time-sampled attributes written as the one pose that was read "
-            "(the earliest time sample of the points), the same at every time: " + "; ".join(frozen)),
+            "(at the earliest time sample of the points, if they have samples), the same at every time: "
+            + "; ".join(frozen)),
             stacklevel=5)
 
 
