@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import os
 import stat
+import subprocess
+import sys
 
 from ..errors import MeshError, OptionalDependencyError
 
@@ -46,7 +48,38 @@ def pxr_error(exc: Exception) -> str:
 # the files a layer refers to, checked before anything is composed
 # --------------------------------------------------------------------------
 
+#: seconds a crate file's trial opening may take
+PROBE_SECONDS = 120.0
+_PROBE = "import sys\nfrom pxr import Sdf\nSdf.Layer.FindOrOpen(sys.argv[1])\n"
+
+
+def _is_crate(path: str) -> bool:
+    try:
+        with open(path, "rb") as f:
+            return f.read(8) == b"PXR-USDC"
+    except OSError:
+        return False
+
+
+def _probe_crate(path: str, name: str, what: str) -> None:
+    """Open a binary crate file once in a child process first: some damaged crates make usd-core
+    end the whole process (an uncaught ``std::bad_alloc`` in one of its threads, usd-core 26.11),
+    which no check in this process could catch.  A child that dies by a signal or runs past
+    :data:`PROBE_SECONDS` is a :class:`MeshError`; one that fails otherwise leaves the message to
+    the opening here.  Costs one interpreter start and pxr's import (~0.3 s)."""
+    try:
+        proc = subprocess.run([sys.executable, "-c", _PROBE, path], stdin=subprocess.DEVNULL,
+                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=PROBE_SECONDS)
+    except subprocess.TimeoutExpired:
+        raise MeshError(f"{name}: {what} takes the USD library (pxr) over {PROBE_SECONDS:.0f} s to open") from None
+    if proc.returncode < 0:
+        raise MeshError(f"{name}: {what} makes the USD library (pxr) crash (signal {-proc.returncode}): "
+                        "a damaged crate file")
+
+
 def _open_layer(Sdf, path: str, name: str, what: str):
+    if _is_crate(path):
+        _probe_crate(path, name, what)
     try:
         layer = Sdf.Layer.FindOrOpen(path)
     except Exception as exc:   # pxr raises Tf.ErrorException on a malformed file
