@@ -23,7 +23,9 @@ class StudioServer:
 
     def __init__(self, mesh_or_session, *, host: str = "127.0.0.1", port: int = 0, lams=DEFAULT_LAMS,
                  solve: bool = True, max_upload: int = MAX_UPLOAD, name: str = ""):
-        from aiohttp import web
+        from .server import _web
+
+        web = _web()[0]          # aiohttp, or an OptionalDependencyError saying why not
 
         session = mesh_or_session if isinstance(mesh_or_session, StudioSession) else \
             StudioSession(mesh_or_session)
