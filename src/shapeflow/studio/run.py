@@ -6,7 +6,7 @@ import asyncio
 import threading
 
 from .. import params
-from ..errors import ParameterError
+from ..errors import OptionalDependencyError, ParameterError
 from .server import DEFAULT_LAMS, MAX_UPLOAD, hub_of, make_app
 from .session import StudioSession
 
@@ -23,9 +23,10 @@ class StudioServer:
 
     def __init__(self, mesh_or_session, *, host: str = "127.0.0.1", port: int = 0, lams=DEFAULT_LAMS,
                  solve: bool = True, max_upload: int = MAX_UPLOAD, name: str = ""):
-        from .server import _web
-
-        web = _web()[0]          # aiohttp, or an OptionalDependencyError saying why not
+        try:
+            from aiohttp import web
+        except Exception as exc:   # not installed, or installed and broken
+            raise OptionalDependencyError("aiohttp", "studio", "the studio's server", exc) from exc
 
         session = mesh_or_session if isinstance(mesh_or_session, StudioSession) else \
             StudioSession(mesh_or_session)
