@@ -7,7 +7,7 @@ import threading
 from urllib.parse import quote, urlencode
 
 from .. import params
-from ..errors import ParameterError
+from ..errors import OptionalDependencyError, ParameterError
 from .security import is_loopback
 from .server import DEFAULT_LAMS, MAX_UPLOAD, guard_of, hub_of, make_app
 from .session import StudioSession
@@ -30,7 +30,10 @@ class StudioServer:
     def __init__(self, mesh_or_session, *, host: str = "127.0.0.1", port: int = 0, lams=DEFAULT_LAMS,
                  solve: bool = True, max_upload: int = MAX_UPLOAD, name: str = "", token: str | None = None,
                  allow_hosts=(), **queue):
-        from aiohttp import web
+        try:
+            from aiohttp import web
+        except Exception as exc:   # not installed, or installed and broken
+            raise OptionalDependencyError("aiohttp", "studio", "the studio's server", exc) from exc
 
         session = mesh_or_session if isinstance(mesh_or_session, StudioSession) else \
             StudioSession(mesh_or_session)
