@@ -32,6 +32,9 @@ class FlowReport:
     seconds: float = 0.0
     max_displacement: float = 0.0
     steps: int = 0            # steps taken (fewer than ``iterations`` only when no vertex was left free)
+    sharp_edges: int = 0      # feature-aware flow: sharp edges,
+    curve_vertices: int = 0   # vertices that follow their feature curves,
+    feature_fixed: int = 0    # and curve ends and corners, which stay
 
     def summary(self) -> str:
         """One line: time, max displacement, locked vertices, solver."""
