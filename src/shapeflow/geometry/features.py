@@ -73,12 +73,35 @@ def dihedral_angles(mesh, vertices: np.ndarray | None = None) -> np.ndarray:
 
 
 def angle_sharp_edges(mesh, angle: float, vertices: np.ndarray | None = None) -> np.ndarray:
-    """(E,) mask: edges whose dihedral angle exceeds ``angle`` degrees, and non-manifold edges."""
+    """(E,) mask: edges whose dihedral angle exceeds ``angle`` degrees, and non-manifold edges.
+
+    The cosine of the angle decides (one dot product of unit normals per edge); edges within 1e-6
+    of the threshold's cosine are decided by the angle itself, from ``atan2(|a × b|, a · b)``.
+    """
     angle = check_feature_angle(angle)
     t = mesh.topology
-    with np.errstate(invalid="ignore"):
-        sharp = dihedral_angles(mesh, vertices) > angle      # NaN compares False
-    sharp |= t.edge_face_count > 2
+    sharp = t.edge_face_count > 2
+    two, f0, f1, same = _two_face_edges(t)
+    if two.size == 0:
+        return sharp
+    fa = face_vector_areas(mesh, mesh.vertices if vertices is None else vertices)
+    ln = np.sqrt(np.einsum("ij,ij->i", fa, fa))
+    ok = ln > 0
+    inv = np.divide(1.0, ln, out=np.zeros_like(ln), where=ok)
+    nx, ny, nz = (fa[:, k] * inv for k in range(3))
+    cos = nx[f0] * nx[f1] + ny[f0] * ny[f1] + nz[f0] * nz[f1]
+    if same.any():                        # inconsistent orientation: the bend, not the flip
+        cos[same] *= -1.0
+    c = float(np.cos(np.radians(angle)))
+    hit = (cos < c) & ok[f0] & ok[f1]
+    near = np.flatnonzero(np.abs(cos - c) < 1e-6)
+    if near.size:
+        a, b = fa[f0[near]], fa[f1[near]]
+        b[same[near]] *= -1.0
+        cr = np.cross(a, b)
+        exact = np.degrees(np.arctan2(np.sqrt(np.einsum("ij,ij->i", cr, cr)), np.einsum("ij,ij->i", a, b)))
+        hit[near] = (exact > angle) & ok[f0[near]] & ok[f1[near]]
+    sharp[two[hit]] = True
     return sharp
 
 
@@ -96,8 +119,9 @@ def edge_ids(mesh, pairs, name: str = "sharp_edges") -> np.ndarray:
     """Edge ids (into ``mesh.topology.edges``) of the vertex pairs ``pairs`` (k, 2).
 
     Raises ParameterError naming ``name`` and the first row that is not an edge of the mesh.
+    ``mesh`` may be a Mesh or its Topology.
     """
-    t = mesh.topology
+    t = getattr(mesh, "topology", mesh)
     n = t.n_vertices
     a = params.real_array(name, pairs)
     if a.size == 0:
