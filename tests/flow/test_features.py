@@ -185,6 +185,27 @@ def test_dihedral_angles_of_a_hexagonal_prism():
     assert angle_sharp_edges(mesh, 90.5).sum() == 0
 
 
+@pytest.mark.parametrize("shape", ["nut", "box_mixed", "prism3", "l_bracket"])
+def test_compiled_detection_equals_numpy(shape):
+    # the compiled pass over the corners and the NumPy twin decide every edge alike, exact
+    # thresholds included (the nut's vertical edges bend by 60°, its rims by 90°)
+    mesh, info = SHAPES[shape]()
+    bent = mesh.with_vertices(mesh.vertices + 0.01 * np.sin(7 * mesh.vertices[:, [1, 2, 0]]))
+    top = set(info["caps"][1].tolist())
+    faces = [f for f in mesh.faces_as_lists() if not set(f) <= top]
+    opened = sf.Mesh(mesh.vertices, faces)                               # boundary edges
+    flat = mesh.vertices.copy()
+    flat[faces[0]] = flat[faces[0][0]] + 1e-300 * np.arange(len(faces[0]))[:, None]   # a face of zero area
+    fin = sf.Mesh(mesh.vertices, mesh.faces_as_lists() + [faces[0][:2] + [int(info["corners"][0])]])
+    for m in (mesh, bent, opened, fin, sf.Mesh(flat, mesh.faces_as_lists())):
+        for a in (0.0, 5.0, 30.0, 60.0, 90.0, 120.0, 179.0):
+            with sf.accel.use(kernels="force"):
+                fast = angle_sharp_edges(m, a)
+            with sf.accel.use(kernels="off"):
+                slow = angle_sharp_edges(m, a)
+            assert np.array_equal(fast, slow), (a, int((fast != slow).sum()))
+
+
 def test_boundary_edges_are_never_sharp_and_fins_always_are():
     # an open box (no top): its rim is boundary, never sharp by angle
     mesh, info = fs.box(per_side=2, layers=2)

@@ -144,7 +144,8 @@ def curve_system(op: CurveOperator, lam: float, w: np.ndarray, locked: np.ndarra
 
 
 def solve_curves(V: np.ndarray, X: np.ndarray, curve_sys: LinearSystem, lam: float) -> np.ndarray:
-    """Positions ``X`` (the boundary block solved) with the curves solved too: a new array."""
-    out = X.copy()
+    """Positions ``X`` (the boundary block solved, or ``V`` itself) with the curves solved too:
+    written into ``X`` when it is not ``V`` (curves and boundary share no vertex), else a copy."""
+    out = X.copy() if X is V else X
     solve_compact(V, X, out, curve_sys, lam)
     return out

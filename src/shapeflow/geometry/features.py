@@ -25,9 +25,9 @@ import re
 
 import numpy as np
 
-from .. import params
+from .. import accel, params
 from ..errors import ParameterError
-from .measures import face_vector_areas
+from .measures import face_vector_areas, pow2_exponent
 
 __all__ = ["dihedral_angles", "angle_sharp_edges", "edge_ids", "check_feature_angle", "smoothing_group_edges",
            "file_creases", "file_sharp_edges", "OFF_GROUPS"]
@@ -77,15 +77,21 @@ def angle_sharp_edges(mesh, angle: float, vertices: np.ndarray | None = None) ->
 
     The cosine of the angle decides (one dot product of unit normals per edge); edges within 1e-6
     of the threshold's cosine are decided by the angle itself, from ``atan2(|a × b|, a · b)``.
+    Compiled twin: :func:`shapeflow.geometry.compiled.angle_sharp_edges` (one pass over the corners).
     """
     angle = check_feature_angle(angle)
     t = mesh.topology
+    V = mesh.vertices if vertices is None else vertices
+    fast = accel.compiled("geometry", t.n_vertices)
+    if fast is not None and t.n_edges and not pow2_exponent(V):
+        return fast.angle_sharp_edges(t.face_offsets, t.face_indices, t.corner_edge, t.n_edges,
+                                      np.ascontiguousarray(V, dtype=np.float64), angle)
     sharp = t.edge_face_count > 2
     two, f0, f1, same = _two_face_edges(t)
     if two.size == 0:
         return sharp
-    fa = face_vector_areas(mesh, mesh.vertices if vertices is None else vertices)
-    ln = np.sqrt(np.einsum("ij,ij->i", fa, fa))
+    fa = face_vector_areas(mesh, V)
+    ln = np.sqrt(fa[:, 0] * fa[:, 0] + fa[:, 1] * fa[:, 1] + fa[:, 2] * fa[:, 2])
     ok = ln > 0
     inv = np.divide(1.0, ln, out=np.zeros_like(ln), where=ok)
     nx, ny, nz = (fa[:, k] * inv for k in range(3))
@@ -96,10 +102,11 @@ def angle_sharp_edges(mesh, angle: float, vertices: np.ndarray | None = None) ->
     hit = (cos < c) & ok[f0] & ok[f1]
     near = np.flatnonzero(np.abs(cos - c) < 1e-6)
     if near.size:
-        a, b = fa[f0[near]], fa[f1[near]]
-        b[same[near]] *= -1.0
+        a = np.stack([nx[f0[near]], ny[f0[near]], nz[f0[near]]], axis=1)
+        b = np.stack([nx[f1[near]], ny[f1[near]], nz[f1[near]]], axis=1)
         cr = np.cross(a, b)
-        exact = np.degrees(np.arctan2(np.sqrt(np.einsum("ij,ij->i", cr, cr)), np.einsum("ij,ij->i", a, b)))
+        sin = np.sqrt(cr[:, 0] * cr[:, 0] + cr[:, 1] * cr[:, 1] + cr[:, 2] * cr[:, 2])
+        exact = np.degrees(np.arctan2(sin, cos[near]))
         hit[near] = (exact > angle) & ok[f0[near]] & ok[f1[near]]
     sharp[two[hit]] = True
     return sharp

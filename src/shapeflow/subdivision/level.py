@@ -132,24 +132,23 @@ class Level:
         n, E, F = self.n, self.E, self.F
         es = self.edge_sharp
         rule = vertex_rules(t, es, self.vertex_sharp)
-        rows, cols, vals = vertex_masks(t, rule, es > 0, None)
         semi = np.flatnonzero((es > 0) & (es < INF))
+        blend = None
         if semi.size:                      # vertices whose rule changes one level down: blended
             child_es = decremented(es)
             child_rule = vertex_rules(t, child_es, self.vertex_sharp)
             blend = (child_rule != rule) & (rule >= CREASE)
-            if blend.any():
-                w = fractional_weights(t, es, child_es, blend)
-                pr, pc, pv = vertex_masks(t, np.where(blend, rule, 0), es > 0, w)
-                cr, cc, cv = vertex_masks(t, np.where(blend, child_rule, 0), child_es > 0, 1.0 - w)
-                keep = ~blend[rows]
-                rows = [rows[keep], pr, cr]
-                cols = [cols[keep], pc, cc]
-                vals = [vals[keep], pv, cv]
-            else:
-                rows, cols, vals = [rows], [cols], [vals]
-        else:
+            if not blend.any():
+                blend = None
+        if blend is None:
+            rows, cols, vals = vertex_masks(t, rule, es > 0, None)
             rows, cols, vals = [rows], [cols], [vals]
+        else:
+            w = fractional_weights(t, es, child_es, blend)
+            rows, cols, vals = (list(x) for x in zip(
+                vertex_masks(t, np.where(blend, 0, rule), es > 0, 1.0),
+                vertex_masks(t, np.where(blend, rule, 0), es > 0, w, near=blend),
+                vertex_masks(t, np.where(blend, child_rule, 0), child_es > 0, 1.0 - w, near=blend)))
 
         # edge points ------------------------------------------------------
         edges = t.edges
@@ -188,16 +187,24 @@ class Level:
         return P, Q
 
 
-def vertex_masks(t: Topology, rule: np.ndarray, sharp_e: np.ndarray, scale):
+def vertex_masks(t: Topology, rule: np.ndarray, sharp_e: np.ndarray, scale, near: np.ndarray | None = None):
     """(rows, cols, values) of the vertex points by ``rule`` (0: no entry), over [old vertices, face
-    points], each vertex's mask times ``scale`` (None: 1):
+    points], each vertex's mask times ``scale`` (None: 1, and an entry for every vertex):
 
     * smooth and dart: ``(k-2)/k v + 1/k² Σ neighbours + 1/k² Σ face points``;
     * crease: ``3/4 v + 1/8 (a + b)``, a and b the other ends of its two ``sharp_e`` edges;
-    * corner: ``v``."""
+    * corner: ``v``.
+
+    ``near``: the only vertices with a nonzero rule, if few (their edges and corners are picked first)."""
     n = t.n_vertices
     edges = t.edges
     a, b = edges[:, 0], edges[:, 1]
+    fi, cf = t.face_indices, None
+    if near is not None:
+        e = np.flatnonzero(near[a] | near[b])
+        a, b, sharp_e = a[e], b[e], sharp_e[e]
+        c = np.flatnonzero(near[fi])
+        fi, cf = fi[c], t.corner_face[c]
     k = t.vertex_edge_count.astype(np.float64)
     smooth_v = (rule == SMOOTH) | (rule == DART)
     crease_v = rule == CREASE
@@ -225,9 +232,8 @@ def vertex_masks(t: Topology, rule: np.ndarray, sharp_e: np.ndarray, scale):
         m = crease_v[p] & sharp_e
         rows.append(p[m]); cols.append(q[m])
         vals.append(np.full(int(m.sum()), 0.125) if eighth is None else eighth[p[m]])
-    fi = t.face_indices
     m = smooth_v[fi]
-    rows.append(fi[m]); cols.append(n + t.corner_face[m]); vals.append(inv_k2[fi[m]])
+    rows.append(fi[m]); cols.append(n + (t.corner_face if cf is None else cf)[m]); vals.append(inv_k2[fi[m]])
     return np.concatenate(rows), np.concatenate(cols), np.concatenate(vals)
 
 
