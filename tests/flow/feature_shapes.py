@@ -15,6 +15,20 @@ import numpy as np
 import shapeflow as sf
 
 
+def plane_dev(P) -> float:
+    """Largest distance of the points P from their best-fit plane (SVD)."""
+    c = P.mean(axis=0)
+    return float(np.abs((P - c) @ np.linalg.svd(P - c)[2][2]).max())
+
+
+def line_dev(P) -> float:
+    """Largest distance of the points P from their best-fit line (SVD)."""
+    c = P.mean(axis=0)
+    d = P - c
+    u = np.linalg.svd(d)[2][0]
+    return float(np.linalg.norm(d - np.outer(d @ u, u), axis=1).max())
+
+
 def polyline(corners, per_side: int) -> np.ndarray:
     """A closed polygon through ``corners`` with ``per_side`` segments per side (no repeated point)."""
     c = np.asarray(corners, float)

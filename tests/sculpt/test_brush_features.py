@@ -24,16 +24,7 @@ _spec.loader.exec_module(fs)
 EXACT = 1e-9   # × diagonal
 
 
-def plane_dev(P):
-    c = P.mean(axis=0)
-    return float(np.abs((P - c) @ np.linalg.svd(P - c)[2][2]).max())
-
-
-def line_dev(P):
-    c = P.mean(axis=0)
-    d = P - c
-    u = np.linalg.svd(d)[2][0]
-    return float(np.linalg.norm(d - np.outer(d @ u, u), axis=1).max())
+plane_dev, line_dev = fs.plane_dev, fs.line_dev
 
 
 def deviations(mesh, info, V):

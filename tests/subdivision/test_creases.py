@@ -13,28 +13,13 @@ from shapeflow.subdivision import subdivide, subdivision_matrix
 
 
 def box():
-    """A 2 × 2 × 2 box of quads (closed), slightly uneven."""
-    g = np.linspace(-1, 1, 3)
-    P = np.array([[x, y, z] for x in g for y in g for z in g])
-    P = P[np.abs(P).max(axis=1) == 1]
-    key = {tuple(p): i for i, p in enumerate(P.tolist())}
-    F = []
-    for axis in range(3):
-        for sgn in (-1, 1):
-            u, v = [a for a in range(3) if a != axis]
-            for i in range(2):
-                for j in range(2):
-                    corner = []
-                    for du, dv in ((0, 0), (1, 0), (1, 1), (0, 1)):
-                        q = [0.0, 0.0, 0.0]
-                        q[axis], q[u], q[v] = sgn, g[i + du], g[j + dv]
-                        corner.append(key[tuple(q)])
-                    F.append(corner if (sgn > 0) == (axis != 1) else corner[::-1])
-    m = sf.Mesh(P * [1.0, 0.8, 0.6], F)
-    e = m.topology.edges
-    on_box_edge = (np.abs(P[e[:, 0]]) == 1).sum(axis=1) >= 2
-    on_box_edge &= (np.abs(P[e[:, 1]]) == 1).sum(axis=1) >= 2
-    return m, e[on_box_edge]
+    """A 2 × 2 × 2 box of quads (a cube, simply subdivided once, stretched) and the edges of the box."""
+    cube = sf.Mesh([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)],
+                   [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]])
+    m = sf.subdivide(cube, 1, scheme="simple")
+    V, e = m.vertices, m.topology.edges
+    extreme = (np.abs(V) == 1).sum(axis=1) >= 2                 # on an edge of the box
+    return m.with_vertices(V * [1.0, 0.8, 0.6]), e[extreme[e[:, 0]] & extreme[e[:, 1]]]
 
 
 def test_carried_creases_continue_the_surface():

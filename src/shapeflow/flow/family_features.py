@@ -82,6 +82,18 @@ def coupled_seed_system(interior_sys, curve_sys, S: np.ndarray, V: np.ndarray, X
     return R0, Ts, Ts.T.tocsr(), cols_ax
 
 
+def _next_residual(blk: ShiftedBlock, active: np.ndarray, zeta: np.ndarray, k_blk: int) -> int:
+    """Store the new seed residual in the block (folding a full block into the iterates first);
+    returns the number of shifts active at the start of the current block."""
+    ka = int(np.flatnonzero(active.any(axis=1)).max()) + 1
+    if blk.used == blk.cap:
+        blk.flush(k_blk, ka)
+        k_blk = ka
+        blk.restart()
+    blk.append(zeta, ka)
+    return k_blk
+
+
 @dataclass
 class BiCGResult:
     """As :class:`~shapeflow.linalg.multishift.MultiShiftResult`: ``X[j, i]`` column j of shift i."""
@@ -150,12 +162,7 @@ def multishift_bicg(A, AT, B: np.ndarray, shifts, *, rtol: float, maxiter: int, 
             done_prev = report_progress(progress, active, inv, done_prev)
             if not active.any():
                 break
-            ka = int(np.flatnonzero(active.any(axis=1)).max()) + 1
-            if blk.used == blk.cap:
-                blk.flush(k_blk, ka)
-                k_blk = ka
-                blk.restart()
-            blk.append(zeta, ka)
+            k_blk = _next_residual(blk, active, zeta, k_blk)
             p *= beta[:, None]
             p += blk.Rb[:, blk.used - 1]
             p_shadow *= beta[:, None]

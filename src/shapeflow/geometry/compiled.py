@@ -30,6 +30,18 @@ def corner_triangle(ax, ay, az, bx, by, bz, dx, dy, dz):
     return lp, ln, dot, np.sqrt(cx * cx + cy * cy + cz * cz)
 
 
+@njit(inline="always")
+def cross_of_differences(V, a, b, c, d):
+    """(V[b] − V[a]) × (V[d] − V[c]), as :func:`shapeflow.geometry.measures.face_vector_areas` writes it."""
+    px = V[b, 0] - V[a, 0]
+    py = V[b, 1] - V[a, 1]
+    pz = V[b, 2] - V[a, 2]
+    qx = V[d, 0] - V[c, 0]
+    qy = V[d, 1] - V[c, 1]
+    qz = V[d, 2] - V[c, 2]
+    return py * qz - pz * qy, pz * qx - px * qz, px * qy - py * qx
+
+
 def angle_sharp_edges(face_offsets, face_indices, corner_edge, n_edges, V, angle):
     """:func:`shapeflow.geometry.features.angle_sharp_edges` in one pass over the faces' corners:
     (E,) mask of the edges whose two faces' normals make more than ``angle`` degrees, and of the
@@ -56,30 +68,13 @@ def _angle_sharp(offsets, fi, corner_edge, V, quads, angle, c_lim, seen, first, 
         ny = 0.0
         nz = 0.0
         if quads:                                    # face_vector_areas: a quad's diagonals
-            b = np.uint64(fi[o0 + 1])
-            d = np.uint64(fi[o0 + 2])
-            g = np.uint64(fi[o0 + 3])
-            px = V[d, 0] - V[a, 0]
-            py = V[d, 1] - V[a, 1]
-            pz = V[d, 2] - V[a, 2]
-            qx = V[g, 0] - V[b, 0]
-            qy = V[g, 1] - V[b, 1]
-            qz = V[g, 2] - V[b, 2]
-            nx = py * qz - pz * qy
-            ny = pz * qx - px * qz
-            nz = px * qy - py * qx
+            nx, ny, nz = cross_of_differences(V, a, np.uint64(fi[o0 + 2]), np.uint64(fi[o0 + 1]),
+                                              np.uint64(fi[o0 + 3]))
         for c in range(o0 + 1, o1 - 1 if not quads else o0 + 1):   # else the fan from the first corner
-            b = np.uint64(fi[c])
-            d = np.uint64(fi[c + 1])
-            px = V[b, 0] - V[a, 0]
-            py = V[b, 1] - V[a, 1]
-            pz = V[b, 2] - V[a, 2]
-            qx = V[d, 0] - V[a, 0]
-            qy = V[d, 1] - V[a, 1]
-            qz = V[d, 2] - V[a, 2]
-            nx += py * qz - pz * qy
-            ny += pz * qx - px * qz
-            nz += px * qy - py * qx
+            px, py, pz = cross_of_differences(V, a, np.uint64(fi[c]), a, np.uint64(fi[c + 1]))
+            nx += px
+            ny += py
+            nz += pz
         nx *= 0.5
         ny *= 0.5
         nz *= 0.5

@@ -149,18 +149,13 @@ class DabSystem:
                 Xi[bad] = VU[bad]
         # --- result: V + sign(λ)(X − V) --------------------------------------------------
         idx_parts, new_parts, old_parts = [], [], []
-        if Rb.size:
-            Ub = S[Rb]
-            Vb = V.take(Ub, axis=0, mode="clip")
-            idx_parts.append(Ub)
-            old_parts.append(Vb)
-            new_parts.append(Xb if lam_b >= 0 else Vb - (Xb - Vb))
-        if Rc.size:
-            Uc = S[Rc]
-            Vc = V.take(Uc, axis=0, mode="clip")
-            idx_parts.append(Uc)
-            old_parts.append(Vc)
-            new_parts.append(Xc if lam >= 0 else Vc - (Xc - Vc))
+        for Rs, Xs, sign in ((Rb, Xb, lam_b >= 0), (Rc, Xc, lam >= 0)):    # the boundary, the curves
+            if Rs.size:
+                Us = S[Rs]
+                Vs = V.take(Us, axis=0, mode="clip")
+                idx_parts.append(Us)
+                old_parts.append(Vs)
+                new_parts.append(Xs if sign else Vs - (Xs - Vs))
         if k:
             idx_parts.append(U)
             old_parts.append(VU)
