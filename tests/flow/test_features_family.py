@@ -80,6 +80,23 @@ def test_extreme_coordinates_keep_their_sharp_edges():
         assert np.abs(small - ref).max() <= 1e-9 * big.diagonal
 
 
+def test_extreme_coordinates_keep_carried_creases_and_angles():
+    # a subdivision's creases ride on the mesh object; the flow's scaled copy must still see them
+    mesh = fs.box(per_side=2, layers=2)[0]
+    part = sf.subdivide(mesh, 1, creases=(mesh.topology.edges[sf.geometry.features.angle_sharp_edges(mesh, 45.0)],
+                                          1.0))
+    big = part.with_vertices(np.ldexp(part.vertices, 400))
+    big.creases = part.creases
+    for kernels in ("force", "off"):
+        with sf.accel.use(kernels=kernels):
+            assert np.array_equal(sf.geometry.features.angle_sharp_edges(big, 45.0),
+                                  sf.geometry.features.angle_sharp_edges(part, 45.0))
+    a = sf.flow(big, -5.0, sharp_edges="mesh")
+    b = sf.flow(part, -5.0, sharp_edges="mesh")
+    assert a.report.sharp_edges == b.report.sharp_edges > 0
+    assert np.abs(np.ldexp(a.vertices, -400) - b.vertices).max() <= 1e-9 * part.diagonal
+
+
 def test_unconverged_members_are_redone(monkeypatch):
     mesh = fs.nut()[0]
     real = multishift_bicg

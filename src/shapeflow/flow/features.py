@@ -56,8 +56,11 @@ def mesh_sharp_edges(mesh: Mesh) -> np.ndarray:
     return sharp
 
 
-def resolve_sharp_edges(mesh: Mesh, feature_angle, sharp_edges) -> np.ndarray | None:
-    """(E,) mask of the sharp edges, or None when neither option is given (the plain flow)."""
+def resolve_sharp_edges(mesh: Mesh, feature_angle, sharp_edges, carrier: Mesh | None = None) -> np.ndarray | None:
+    """(E,) mask of the sharp edges, or None when neither option is given (the plain flow).
+
+    ``carrier``: the mesh whose file data and ``creases`` ``sharp_edges="mesh"`` reads (default
+    ``mesh``; the flow's scaled copy of an input with extreme coordinates shares its topology)."""
     if feature_angle is None and sharp_edges is None:
         return None
     sharp = np.zeros(mesh.topology.n_edges, bool)
@@ -66,7 +69,7 @@ def resolve_sharp_edges(mesh: Mesh, feature_angle, sharp_edges) -> np.ndarray | 
     if isinstance(sharp_edges, str):
         if sharp_edges != "mesh":
             raise ParameterError(f"sharp_edges must be a (k, 2) array of vertex pairs or 'mesh', got {sharp_edges!r}")
-        sharp |= mesh_sharp_edges(mesh)
+        sharp |= mesh_sharp_edges(mesh if carrier is None else carrier)
     elif sharp_edges is not None:
         sharp[edge_ids(mesh, sharp_edges, "sharp_edges")] = True
     return sharp

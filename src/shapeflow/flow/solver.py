@@ -77,7 +77,7 @@ class FlowSolver:
         self.solver_method = solver
         self.rtol = params.rtol(rtol)
         # sharp edges (flow.features): topology, detected once at the input positions
-        self.sharp = resolve_sharp_edges(self.mesh, feature_angle, sharp_edges)
+        self.sharp = resolve_sharp_edges(self.mesh, feature_angle, sharp_edges, carrier=mesh)
         self.systems = SystemBuilder(self.mesh, w=self.w, scheme=self.scheme, blender=self.blender,
                                      normalized=self.normalized, method=solver, rtol=self.rtol,
                                      lam_border=self.lam_border, sharp=self.sharp)

@@ -82,8 +82,11 @@ def angle_sharp_edges(mesh, angle: float, vertices: np.ndarray | None = None) ->
     angle = check_feature_angle(angle)
     t = mesh.topology
     V = mesh.vertices if vertices is None else vertices
+    k = pow2_exponent(V)
+    if k:      # normals are scale-free: an exact power-of-two copy keeps the areas in range
+        V = np.ldexp(V, -k)
     fast = accel.compiled("geometry", t.n_vertices)
-    if fast is not None and t.n_edges and not pow2_exponent(V):
+    if fast is not None and t.n_edges:
         return fast.angle_sharp_edges(t.face_offsets, t.face_indices, t.corner_edge, t.n_edges,
                                       np.ascontiguousarray(V, dtype=np.float64), angle)
     sharp = t.edge_face_count > 2
