@@ -60,6 +60,7 @@ def test_family_with_sharp_edges_is_one_solve_and_equals_flow(name, variant):
     assert report.solver == "multishift-bicg"
     assert report.fallback_members == []
     assert report.shifts == 5 and report.krylov_iterations > 0
+    assert "one multi-shift BiCG solve for 5 distinct" in report.summary()
 
 
 def test_several_iterations_are_solved_per_member():

@@ -84,7 +84,8 @@ class FamilyReport:
         """One line: path, members, time, iterations."""
         k = len(self.lams)
         if self.path == "multishift":
-            how = (f"one multi-shift CG solve for {self.shifts} distinct |λ| "
+            kind = "BiCG" if self.solver.startswith("multishift-bicg") else "CG"   # BiCG: with sharp edges
+            how = (f"one multi-shift {kind} solve for {self.shifts} distinct |λ| "
                    f"({self.krylov_iterations} shared iterations)")
         elif self.path == "separate":
             how = f"{k} separate solves on one shared operator ({self.solver})"
