@@ -23,8 +23,10 @@ Public functions::
                      invert_vertex_group=False, repeat=1) -> (positions, seconds_median)
     subdivision_surface(vertices, face_sizes, face_indices, *, levels=1,
                         subdivision_type="CATMULL_CLARK", boundary_smooth="ALL",
-                        weights=None, repeat=1, use_limit_surface=False)
+                        weights=None, repeat=1, use_limit_surface=False, creases=None)
         -> (positions, face_sizes, face_indices, result_weights or None, seconds_median)
+    set_edge_creases(mesh, pairs, values) -> None
+    crease_fixtures(out_dir) -> [paths]
     clear_scene() -> None
     suzanne_sub4() -> (vertices, face_sizes, face_indices)
     main()
@@ -34,7 +36,9 @@ every sample and the cost of the same re-evaluation with the modifier disabled.
 
 Run ``python benchmarks/blender_ref.py`` to re-run every fixture case in
 ``shared/fixtures/blender/cases.json`` and print the deviations and timings;
-``--suzanne`` also times Laplacian Smooth on the 126,290-vertex Suzanne-sub4.
+``--suzanne`` also times Laplacian Smooth on the 126,290-vertex Suzanne-sub4;
+``--crease-fixtures tests/data/blender_creases`` writes the creased-subdivision fixtures
+(:data:`CREASE_CASES`) and stops.
 """
 
 from __future__ import annotations
@@ -360,8 +364,9 @@ def subdivision_surface(
     weights=None,
     repeat=1,
     use_limit_surface=False,
+    creases=None,
 ):
-    """Blender's Subdivision Surface modifier (creases off).
+    """Blender's Subdivision Surface modifier (creases off unless ``creases`` is given).
 
     Returns ``(positions (N,3) float64, face_sizes, face_indices, result_weights
     or None, seconds_median)``.  ``result_weights`` is the ``"weights"`` vertex
@@ -386,6 +391,8 @@ def subdivision_surface(
     clear_scene()
     try:
         ob = make_object(vertices, face_sizes, face_indices, weights=weights, name="subdiv")
+        if creases is not None:
+            set_edge_creases(ob.data, *creases)
         mod = ob.modifiers.new("Subdivision", "SUBSURF")
         mod.show_viewport = False
         mod.subdivision_type = subdivision_type
@@ -393,7 +400,7 @@ def subdivision_surface(
         mod.render_levels = int(levels)
         mod.boundary_smooth = boundary_smooth
         mod.use_limit_surface = bool(use_limit_surface)
-        mod.use_creases = False
+        mod.use_creases = creases is not None
         mod.use_custom_normals = False
         dg, samples, baseline = _time_modifier(ob, mod, repeat, force_mesh=True)
         ob_eval = ob.evaluated_get(dg)
@@ -409,6 +416,29 @@ def subdivision_surface(
     last_timing.clear()
     last_timing.update(what="subdivision_surface", samples=samples, baseline=baseline)
     return positions, sizes, corners, result_weights, statistics.median(samples)
+
+
+def set_edge_creases(me, pairs, values) -> None:
+    """Write creases (vertex pairs (k, 2), values (k,)) to the ``crease_edge`` EDGE attribute of ``me``.
+
+    Blender's edges come from ``calc_edges``; each pair is looked up among them (ValueError if a
+    pair is not an edge).  Bulk ``foreach_get``/``foreach_set``, no loop over edges.
+    """
+    E = np.empty(2 * len(me.edges), dtype=np.int32)
+    me.edges.foreach_get("vertices", E)
+    E = np.sort(E.reshape(-1, 2).astype(np.int64), axis=1)
+    n = max(len(me.vertices), 1)
+    keys = E[:, 0] * n + E[:, 1]
+    order = np.argsort(keys)
+    p = np.sort(np.asarray(pairs, dtype=np.int64).reshape(-1, 2), axis=1)
+    want = p[:, 0] * n + p[:, 1]
+    pos = order[np.minimum(np.searchsorted(keys[order], want), len(order) - 1)]
+    if len(want) and not np.array_equal(keys[pos], want):
+        raise ValueError("a crease names a vertex pair that is not an edge of the mesh")
+    c = np.zeros(len(E), dtype=np.float32)
+    c[pos] = np.asarray(values, dtype=np.float32).reshape(-1)
+    attr = me.attributes.get("crease_edge") or me.attributes.new("crease_edge", "FLOAT", "EDGE")
+    attr.data.foreach_set("value", c)
 
 
 # --------------------------------------------------------------------------- Suzanne
@@ -447,6 +477,114 @@ def suzanne_sub4(cache: bool = True):
         np.savez_compressed(tmp, vertices=V, face_sizes=fs, face_indices=fi)
         os.replace(tmp, path)
     return V, fs, fi
+
+
+# --------------------------------------------------------------------------- crease fixtures
+
+
+def _crease_meshes() -> dict:
+    """The small meshes of the crease fixtures, built with NumPy: (vertices, face lists, creases (pairs, values))."""
+    rng = np.random.default_rng(2026)
+    out = {}
+    # triangles: an icosahedron, creased along a closed loop of edges and a dart
+    t = (1 + 5 ** 0.5) / 2
+    V = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t], [0, -1, -t], [0, 1, -t],
+                  [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1]], float)
+    F = [[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4], [11, 10, 2], [10, 7, 6],
+         [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10],
+         [8, 6, 7], [9, 8, 1]]
+    out["tri"] = (V, F, ([[0, 11], [11, 5], [5, 1], [1, 0], [3, 6]], [1.0, 0.45, 0.2, 0.7, 0.3]))
+    # quads: a box, 2 × 2 quads a side, its edges creased (1, 1/2, 1/4, 0.1 ...), one dart inside a side
+    g = np.linspace(-1, 1, 3)
+    P = np.array([[x, y, z] for x in g for y in g for z in g])
+    P = P[np.abs(P).max(axis=1) == 1]
+    key = {tuple(p): i for i, p in enumerate(P.tolist())}
+    F = []
+    for axis in range(3):
+        for sgn in (-1, 1):
+            u, v = [a for a in range(3) if a != axis]
+            for i in range(2):
+                for j in range(2):
+                    corner = []
+                    for du, dv in ((0, 0), (1, 0), (1, 1), (0, 1)):
+                        q = [0.0, 0.0, 0.0]
+                        q[axis], q[u], q[v] = sgn, g[i + du], g[j + dv]
+                        corner.append(key[tuple(q)])
+                    F.append(corner if (sgn > 0) == (axis != 1) else corner[::-1])
+    edges = {tuple(sorted((f[k], f[(k + 1) % 4]))) for f in F for k in range(4)}
+    box_edges = np.array([e for e in sorted(edges) if (np.abs(P[list(e)]) == 1).sum(axis=1).min() >= 2])
+    vals = rng.choice([1.0, 0.5, 0.25, 0.1, 0.8], size=len(box_edges))
+    dart = [[key[(1.0, 0.0, 0.0)], key[(1.0, 1.0, 0.0)]]]
+    P = P * [1.0, 0.8, 0.6] + 0.03 * rng.standard_normal(P.shape)
+    out["quad"] = (P, F, (np.r_[box_edges, dart], np.r_[vals, 0.6]))
+    # n-gons: a hexagonal prism with hexagon caps, one side split into triangles
+    a = np.arange(6) * np.pi / 3
+    V = np.r_[np.c_[np.cos(a), np.sin(a), np.zeros(6)], np.c_[0.8 * np.cos(a), 0.8 * np.sin(a), np.ones(6)]]
+    F = [[5, 4, 3, 2, 1, 0], [6, 7, 8, 9, 10, 11], [0, 1, 7], [0, 7, 6]] + \
+        [[k, k + 1, k + 7, k + 6] for k in range(1, 5)] + [[5, 0, 6, 11]]
+    rim = [[k, (k + 1) % 6] for k in range(6)] + [[6 + k, 6 + (k + 1) % 6] for k in range(6)]
+    out["ngon"] = (V, F, (rim + [[0, 6], [3, 9]], [0.6] * 6 + [1.0, 0.35, 0.9, 0.15, 0.5, 0.75] + [0.2, 1.0]))
+    # open: a 4 × 3 grid of quads and triangles and a pentagon, creases inside and onto the border
+    xs, ys = np.meshgrid(np.arange(5.0), np.arange(4.0), indexing="ij")
+    V = np.c_[xs.ravel(), ys.ravel(), 0.3 * np.sin(xs.ravel()) * np.cos(ys.ravel())]
+    idx = lambda i, j: i * 4 + j  # noqa: E731
+    F = []
+    for i in range(4):
+        for j in range(3):
+            q = [idx(i, j), idx(i + 1, j), idx(i + 1, j + 1), idx(i, j + 1)]
+            if (i, j) in ((1, 1), (2, 0)):
+                F += [q[:3], [q[0], q[2], q[3]]]
+            elif (i, j) != (3, 2):
+                F.append(q)
+    V = np.r_[V, [[3.5, 3.6, 0.1]]]                           # a pentagon on the border
+    F.append([idx(3, 2), idx(4, 2), idx(4, 3), len(V) - 1, idx(3, 3)])
+    cre = [[idx(1, 0), idx(1, 1)], [idx(1, 1), idx(1, 2)], [idx(1, 2), idx(1, 3)], [idx(0, 2), idx(1, 2)],
+           [idx(1, 2), idx(2, 2)], [idx(2, 2), idx(3, 2)], [idx(3, 1), idx(3, 2)]]
+    out["open"] = (V, F, (cre, [1.0, 0.55, 0.25, 0.4, 0.85, 0.12, 1.0]))
+    return out
+
+
+#: crease fixture cases: name -> (mesh, levels, boundary_smooth, with weights)
+CREASE_CASES = {
+    "tri_1": ("tri", 1, "ALL", False), "tri_3": ("tri", 3, "ALL", True),
+    "quad_2": ("quad", 2, "ALL", False), "quad_3": ("quad", 3, "ALL", True),
+    "ngon_1": ("ngon", 1, "ALL", True), "ngon_2": ("ngon", 2, "ALL", False), "ngon_3": ("ngon", 3, "ALL", False),
+    "open_all_1": ("open", 1, "ALL", False), "open_all_2": ("open", 2, "ALL", True),
+    "open_all_3": ("open", 3, "ALL", False), "open_corners_1": ("open", 1, "PRESERVE_CORNERS", True),
+    "open_corners_2": ("open", 2, "PRESERVE_CORNERS", False), "open_corners_3": ("open", 3, "PRESERVE_CORNERS", True),
+}
+
+
+def crease_fixtures(out_dir) -> list:
+    """Run Blender's Subdivision Surface with creases on every :data:`CREASE_CASES` case and write
+    ``<case>.npz`` files to ``out_dir``: the input (float32-exact positions, faces, creases, weights)
+    and Blender's result (positions, faces, interpolated weights).  Returns the files written."""
+    import bpy
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    meshes = _crease_meshes()
+    written = []
+    for name, (mesh, levels, boundary, with_weights) in CREASE_CASES.items():
+        V, F, (pairs, values) = meshes[mesh]
+        V = np.asarray(V, float).astype(np.float32).astype(np.float64)     # what Blender stores
+        fs = np.array([len(f) for f in F], np.int32)
+        fi = np.concatenate([np.asarray(f) for f in F]).astype(np.int32)
+        pairs = np.asarray(pairs, np.int32).reshape(-1, 2)
+        values = np.asarray(values, np.float32)
+        w = np.linspace(0.0, 1.0, len(V)).astype(np.float32) if with_weights else None
+        P, rfs, rfi, rw, _ = subdivision_surface(V, fs, fi, levels=levels, boundary_smooth=boundary, weights=w,
+                                                 creases=(pairs, values))
+        data = dict(vertices=V, face_sizes=fs, face_indices=fi, crease_edges=pairs, crease_values=values,
+                    levels=levels, boundary_smooth=boundary, result=P.astype(np.float32),
+                    result_face_sizes=rfs.astype(np.int32), result_face_indices=rfi.astype(np.int32),
+                    blender=bpy.app.version_string)
+        if w is not None:
+            data.update(weights=w, result_weights=rw.astype(np.float32))
+        path = out_dir / f"{name}.npz"
+        np.savez_compressed(path, **data)
+        written.append(path)
+    return written
 
 
 # --------------------------------------------------------------------------- main
@@ -521,12 +659,21 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=1, help="timing samples per case")
     ap.add_argument("--suzanne", action="store_true", 
                     help="also time Laplacian Smooth on Suzanne-sub4 (3 samples, ~30 s)")
+    ap.add_argument("--crease-fixtures", metavar="DIR",
+                    help="write the creased-subdivision fixtures (CREASE_CASES) to DIR and stop")
     ap.add_argument("cases", nargs="*", help="case names (default: all in cases.json)")
     args = ap.parse_args(argv)
     if not available():
         print("bpy is not importable: pip install bpy==5.0.1 (Python 3.11)", file=sys.stderr)
         return 2
     import bpy
+
+    if args.crease_fixtures:
+        files = crease_fixtures(args.crease_fixtures)
+        total = sum(f.stat().st_size for f in files)
+        print(f"Blender {bpy.app.version_string}: {len(files)} crease fixtures, {total / 1024:.0f} KB, "
+              f"in {args.crease_fixtures}")
+        return 0
 
     fixtures = _find_fixtures()
     if fixtures is None:

@@ -9,6 +9,7 @@ from ..errors import ParameterError
 from ..linalg.spd import DEFAULT_RTOL
 from ..mesh import Mesh
 from ..types import Axes, Weights
+from .features import SharpEdges
 from .solver import FlowSolver
 
 __all__ = ["flow", "smooth", "enhance"]
@@ -20,7 +21,8 @@ def flow(mesh: Mesh, lam: float, *, lam_border: float = 0.0, iterations: int = 1
          preserve_volume: bool = False, axes: Axes = (True, True, True),
          scheme: str | None = None, update: str = "fixed", compat: str | None = None,
          solver: str = "auto", rtol: float = DEFAULT_RTOL,
-         progress: Callable[[int, int], None] | None = None) -> Mesh:
+         progress: Callable[[int, int], None] | None = None, feature_angle: float | None = None,
+         sharp_edges: SharpEdges = None) -> Mesh:
     """Smooth (λ > 0) or enhance (λ < 0) a mesh with the implicit TQLBO flow.
 
     Parameters
@@ -63,6 +65,17 @@ def flow(mesh: Mesh, lam: float, *, lam_border: float = 0.0, iterations: int = 1
         CG tolerance, relative to the initial residual of each solve.
     progress : callable(done, total), optional
         Called after each iteration.
+    feature_angle : float, optional
+        Degrees: an edge whose two faces' normals make a larger angle is sharp
+        (:mod:`shapeflow.geometry.features`; boundary edges never are).
+    sharp_edges : (k, 2) array of vertex pairs, or "mesh"
+        Sharp edges given (each pair must be an edge), or those the mesh
+        carries ("mesh": OBJ smoothing-group borders and ``t crease`` tags, a
+        subdivision's ``creases``); with ``feature_angle``, their union.  With
+        either, sharp edges form feature curves: a vertex on two of them moves
+        along its curve by the curve's own Laplacian, curve ends and corners
+        stay, and the rest of the surface flows with them as boundary values
+        (:mod:`shapeflow.flow.features`).  Without either, the plain flow.
 
     Returns
     -------
@@ -81,8 +94,9 @@ def flow(mesh: Mesh, lam: float, *, lam_border: float = 0.0, iterations: int = 1
     """
     return FlowSolver(mesh, lam_border=lam_border, normalized=normalized, weights=weights,
                       invert_weights=invert_weights, scheme=scheme, compat=compat, solver=solver,
-                      rtol=rtol).run(lam, iterations=iterations, preserve_volume=preserve_volume,
-                                     axes=axes, update=update, progress=progress)
+                      rtol=rtol, feature_angle=feature_angle, sharp_edges=sharp_edges
+                      ).run(lam, iterations=iterations, preserve_volume=preserve_volume, axes=axes, update=update,
+                            progress=progress)
 
 
 def check_strength(s) -> float:

@@ -92,6 +92,7 @@ from ..linalg.spd import DEFAULT_RTOL
 from ..mesh import Mesh
 from ..types import Axes, Weights
 from .family_paths import plan_shared_solve, separate_solves, shared_solve
+from .features import SharpEdges
 from .options import check_run_options
 from .report import FamilyReport
 from .solver import FlowSolver
@@ -124,7 +125,8 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
            preserve_volume: bool = False, axes: Axes = (True, True, True),
            scheme: str | None = None, update: str = "fixed", compat: str | None = None,
            solver: str = "auto", rtol: float = DEFAULT_RTOL, strategy: str = "auto",
-           progress: Callable[[int, int], None] | None = None, return_report: bool = False
+           progress: Callable[[int, int], None] | None = None, return_report: bool = False,
+           feature_angle: float | None = None, sharp_edges: SharpEdges = None
            ) -> np.ndarray | tuple[np.ndarray, FamilyReport]:
     """The flow for every λ of ``lams`` at once: an array ``(k, n, 3)``.
 
@@ -139,8 +141,9 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
         One λ per member, any signs, zeros and repeats allowed (+λ and −λ
         share one solve).  Figure 1 of the paper: ``np.arange(0, -240, -5)``.
     lam_border, iterations, normalized, weights, invert_weights, preserve_volume,
-    axes, scheme, update, compat, solver, rtol
-        As in :func:`shapeflow.flow` (validated the same way).  ``rtol`` is the
+    axes, scheme, update, compat, solver, rtol, feature_angle, sharp_edges
+        As in :func:`shapeflow.flow` (validated the same way).  With sharp edges the
+        shared solve is a multi-shift BiCG (:mod:`shapeflow.flow.family_features`).  ``rtol`` is the
         tolerance of the shared solve too: each member stops when its own
         residual fell by ``rtol``.
     strategy : {"auto", "multishift", "separate"}
@@ -172,14 +175,17 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
     return_report = params.flag("return_report", return_report)
     params.progress(progress)
     flow_solver = FlowSolver(mesh, lam_border=lam_border, normalized=normalized, weights=weights,
-                             invert_weights=invert_weights, scheme=scheme, compat=compat, solver=solver, rtol=rtol)
+                             invert_weights=invert_weights, scheme=scheme, compat=compat, solver=solver, rtol=rtol,
+                             feature_angle=feature_angle, sharp_edges=sharp_edges)
     if flow_solver.pow2:   # extreme coordinates: the family of the exact power-of-two copy, scaled back
         e = flow_solver.pow2
         shapes, rep = family(flow_solver.mesh, lam_arr if normalized else np.ldexp(lam_arr, -2 * e),
                              lam_border=lam_border, iterations=iterations, normalized=normalized,
                              weights=flow_solver.w, preserve_volume=preserve_volume, axes=axes, scheme=scheme,
                              update=update, compat=compat, solver=solver, rtol=rtol, strategy=strategy,
-                             progress=progress, return_report=True)
+                             progress=progress, return_report=True,
+                             sharp_edges=None if flow_solver.sharp is None else
+                             flow_solver.mesh.topology.edges[flow_solver.sharp])
         shapes = scaled_back(shapes, rep, lam_arr, e)
         return (shapes, rep) if return_report else shapes
     ax = check_run_options(iterations, update, axes, flow_solver.blender)

@@ -15,6 +15,7 @@ import numpy as np
 
 from ..linalg.multishift import multishift_cg
 from ..linalg.spd import estimate_cg_iterations
+from .family_features import coupled_seed_system, multishift_bicg
 from .report import FamilyReport, FlowReport
 from .solver import FlowSolver
 
@@ -38,6 +39,7 @@ class SharedPlan:
     hard: np.ndarray        # (k,) members left to separate solves (|λ| too large for the shared CG)
     maxiter: int
     note: str = ""
+    curve_sys: object = None        # the feature curves' system for the seed λ (flow.features; None: none)
 
 
 def plan_shared_solve(flow_solver: FlowSolver, operator, lams: np.ndarray, notes: list):
@@ -82,10 +84,13 @@ def plan_shared_solve(flow_solver: FlowSolver, operator, lams: np.ndarray, notes
     note = ""
     if interior_sys is not None:
         scale[interior_sys.free] = 1.0 / np.sqrt(interior_sys.c[interior_sys.free] * lam_seed)
+    curve_sys = flow_solver.systems.curve_system(operator, lam_seed) if lam_seed else None
+    if curve_sys is not None:
+        scale[curve_sys.idx] = 1.0 / np.sqrt(curve_sys.c * lam_seed)
     if hard.any():
         note = (f"{int(hard.sum())} member(s) with |λ| > {lam_seed:g} solved separately: the shared CG "
                 f"would need far more than {maxiter} iterations for them")
-    return SharedPlan(interior_sys, lam_seed, scale, sigmas, member_shift, hard, maxiter, note)
+    return SharedPlan(interior_sys, lam_seed, scale, sigmas, member_shift, hard, maxiter, note, curve_sys)
 
 
 def boundary_solve(flow_solver: FlowSolver, operator, V: np.ndarray):
@@ -101,11 +106,13 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
     V = mesh.vertices
     n, k = V.shape[0], lams.size
     X, boundary_sys = boundary_solve(flow_solver, operator, V)
-    interior_sys = plan.interior_sys
+    interior_sys, curve_sys = plan.interior_sys, plan.curve_sys
     report.free_vertices = int((interior_sys.free.sum() if interior_sys is not None else 0)
-                               + (boundary_sys.free.sum() if boundary_sys is not None else 0))
+                               + (boundary_sys.free.sum() if boundary_sys is not None else 0)
+                               + (curve_sys.free.sum() if curve_sys is not None else 0))
     report.shifts = int(plan.sigmas.size)
-    report.solver = "multishift-cg" if interior_sys is not None else "none"
+    report.solver = ("multishift-bicg" if curve_sys is not None else
+                     "multishift-cg" if interior_sys is not None else "none")
     # every member starts as V with the boundary moved (flow(): sign of λ_b, enabled axes only)
     base = V.copy()
     if boundary_sys is not None:
@@ -124,8 +131,7 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
         report.fallback_members = [int(m) for m in np.flatnonzero(plan.hard)]
         report.notes.append(plan.note)
     solved = plan.member_shift >= 0
-    if interior_sys is not None and solved.any():
-        R0, As, cols = seed_system(interior_sys, plan.scale, V, X, ax)
+    if (interior_sys is not None or curve_sys is not None) and solved.any():
         S = plan.scale
         deltas = plan.sigmas - plan.sigmas[0]
         member_of_shift = [np.flatnonzero(plan.member_shift == i) for i in range(plan.sigmas.size)]
@@ -136,7 +142,13 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
             counted[new] = True
             tick(int(sum(member_of_shift[i].size for i in np.flatnonzero(new))))
 
-        res = multishift_cg(As, R0, deltas, rtol=flow_solver.rtol, maxiter=plan.maxiter, progress=on_progress)
+        if curve_sys is not None:     # curves and surface: one non-symmetric shifted system (family_features)
+            R0, As, AsT, cols = coupled_seed_system(interior_sys, curve_sys, S, V, X, ax)
+            res = multishift_bicg(As, AsT, R0, deltas, rtol=flow_solver.rtol, maxiter=plan.maxiter,
+                                  progress=on_progress)
+        else:
+            R0, As, cols = seed_system(interior_sys, S, V, X, ax)
+            res = multishift_cg(As, R0, deltas, rtol=flow_solver.rtol, maxiter=plan.maxiter, progress=on_progress)
         report.krylov_iterations = res.krylov_iterations
         Y = res.X                                           # (c, shifts, n)
         Y *= S                                              # displacement Δ = C_1^{-1/2} Y (0 off the free rows)
@@ -161,7 +173,7 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
     elif solved.any():
         tick(int(solved.sum()))                             # no free interior vertex: boundary moves only
     if preserve_volume:
-        has_interior, has_boundary = interior_sys is not None, boundary_sys is not None
+        has_interior, has_boundary = interior_sys is not None or curve_sys is not None, boundary_sys is not None
         rescale_members(flow_solver, out, lams, ax, report,
                         moved=lambda m: (lams[m] != 0.0 and has_interior) or has_boundary)
     return out

@@ -32,6 +32,9 @@ class FlowReport:
     seconds: float = 0.0
     max_displacement: float = 0.0
     steps: int = 0            # steps taken (fewer than ``iterations`` only when no vertex was left free)
+    sharp_edges: int = 0      # feature-aware flow: sharp edges,
+    curve_vertices: int = 0   # vertices that follow their feature curves,
+    feature_fixed: int = 0    # and curve ends and corners, which stay
 
     def summary(self) -> str:
         """One line: time, max displacement, locked vertices, solver."""
@@ -81,7 +84,8 @@ class FamilyReport:
         """One line: path, members, time, iterations."""
         k = len(self.lams)
         if self.path == "multishift":
-            how = (f"one multi-shift CG solve for {self.shifts} distinct |λ| "
+            kind = "BiCG" if self.solver.startswith("multishift-bicg") else "CG"   # BiCG: with sharp edges
+            how = (f"one multi-shift {kind} solve for {self.shifts} distinct |λ| "
                    f"({self.krylov_iterations} shared iterations)")
         elif self.path == "separate":
             how = f"{k} separate solves on one shared operator ({self.solver})"

@@ -18,6 +18,7 @@ from ..mesh.convert import as_mesh
 from ..operators.pattern import check_scheme
 from ..types import Axes, Weights
 from . import system
+from .features import SharpEdges, resolve_sharp_edges, solve_curves
 from .fixed import fixed_steps
 from .options import COMPAT_MODES, FLOW_SOLVERS, MEAN_RESTORE_FROM, check_run_options, resolve_weights
 from .report import FlowReport
@@ -47,7 +48,8 @@ class FlowSolver:
     @accel.heavy
     def __init__(self, mesh: Mesh, *, lam_border: float = 0.0, normalized: bool = True,
                  weights: Weights = None, invert_weights: bool = False, scheme: str | None = None,
-                 compat: str | None = None, solver: str = "auto", rtol: float = DEFAULT_RTOL):
+                 compat: str | None = None, solver: str = "auto", rtol: float = DEFAULT_RTOL,
+                 feature_angle: float | None = None, sharp_edges: SharpEdges = None):
         mesh = as_mesh(mesh)
         if not isinstance(compat, (str, type(None))) or compat not in COMPAT_MODES:
             raise ParameterError(f"unknown compat mode {compat!r}; choose 'blender' or None (paper)")
@@ -74,9 +76,11 @@ class FlowSolver:
         self.w = resolve_weights(mesh, weights, params.flag("invert_weights", invert_weights))
         self.solver_method = solver
         self.rtol = params.rtol(rtol)
+        # sharp edges (flow.features): topology, detected once at the input positions
+        self.sharp = resolve_sharp_edges(self.mesh, feature_angle, sharp_edges, carrier=mesh)
         self.systems = SystemBuilder(self.mesh, w=self.w, scheme=self.scheme, blender=self.blender,
                                      normalized=self.normalized, method=solver, rtol=self.rtol,
-                                     lam_border=self.lam_border)
+                                     lam_border=self.lam_border, sharp=self.sharp)
 
     @property
     def pow2(self) -> int:
@@ -88,6 +92,14 @@ class FlowSolver:
         return self.systems.operator(V)
 
     @staticmethod
+    def _note_features(operator: Operator, report: FlowReport) -> None:
+        """The sharp edges' counts in the report (nothing without sharp edges)."""
+        if operator.curve is not None:
+            report.sharp_edges, report.curve_vertices, report.feature_fixed = operator.curve.curves.counts
+            report.notes.append(f"{report.sharp_edges} sharp edges: {report.curve_vertices} vertices follow their "
+                                f"feature curves, {report.feature_fixed} curve ends and corners stay")
+
+    @staticmethod
     def _note_solver(system: LinearSystem | None, report: FlowReport) -> None:
         """Carry a solver's fallback (CG short of its tolerance, redone by LU) into the report."""
         if system is not None and system.solver.stats.fallback:
@@ -97,8 +109,11 @@ class FlowSolver:
 
     def _step(self, V: np.ndarray, lam: float, lam_b: float, interior_sys: LinearSystem | None,
               boundary_sys: LinearSystem | None, boundary: np.ndarray, axes: np.ndarray,
-              report: FlowReport) -> np.ndarray:
+              report: FlowReport, curve_sys: LinearSystem | None = None) -> np.ndarray:
         X = self.systems.solve_boundary(V, boundary_sys, copy=False)   # V itself when there is no boundary block
+        if curve_sys is not None:      # the feature curves, then the surface with them as boundary values
+            X = solve_curves(V, X, curve_sys, lam)
+            self._note_solver(curve_sys, report)
         if interior_sys is not None:
             r, s, e = interior_sys.coupling
             held = interior_sys.held
@@ -162,6 +177,7 @@ class FlowSolver:
         report.locked = int(report.locked_vertices.size)
         report.degenerate_triangles = operator.n_bad
         report.boundary_vertices = int(operator.boundary.sum())
+        self._note_features(operator, report)
         topo = mesh.topology
         nm = int(topo.nonmanifold_edge_mask.sum())
         if nm:
@@ -185,12 +201,13 @@ class FlowSolver:
                 interior_sys = self.systems.interior(operator, lam, n_solves, report.notes,
                                                      lean=mesh.n_vertices >= system.LEAN_FROM)
                 boundary_sys = self.systems.boundary(operator, lam_b)
+                curve_sys = self.systems.curve_system(operator, lam)
                 if interior_sys is not None:
                     report.solver = interior_sys.solver.method
                 n_free_i = int(interior_sys.free.sum()) if interior_sys else 0
                 n_free_b = int(boundary_sys.free.sum()) if boundary_sys else 0
-                report.free_vertices = n_free_i + n_free_b
-                if interior_sys is None and boundary_sys is None:
+                report.free_vertices = n_free_i + n_free_b + (int(curve_sys.free.sum()) if curve_sys else 0)
+                if interior_sys is None and boundary_sys is None and curve_sys is None:
                     report.notes.append("no free vertex: input returned unchanged" if it == 0 else
                                         f"no free vertex left after step {it} (the operator rebuilt at the moved "
                                         f"positions locks or fixes them all): stopped after {it} of "
@@ -198,7 +215,7 @@ class FlowSolver:
                     report.steps = it
                     break
             if it == 0 and update == "fixed" and iterations >= 2 and not preserve_volume and boundary_sys is None \
-                    and interior_sys is not None and interior_sys.solver.method == "cg" \
+                    and curve_sys is None and interior_sys is not None and interior_sys.solver.method == "cg" \
                     and not isinstance(interior_sys.A, PairMatrix) \
                     and self.solver_method in ("auto", "chebyshev"):
                 V_all = fixed_steps(V, lam, int(iterations), interior_sys, ax, report, operator.pattern, self.rtol)
@@ -208,7 +225,7 @@ class FlowSolver:
                     if progress is not None:
                         progress(int(iterations), int(iterations))
                     break
-            V_new = self._step(V, lam, lam_b, interior_sys, boundary_sys, operator.boundary, ax, report)
+            V_new = self._step(V, lam, lam_b, interior_sys, boundary_sys, operator.boundary, ax, report, curve_sys)
             if preserve_volume:
                 V_new = self.systems.rescale_volume(V, V_new, ax, center0, report)
             V = V_new

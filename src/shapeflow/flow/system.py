@@ -26,7 +26,8 @@ from ..operators.weights import assemble
 from .options import MEAN_RESTORE_FROM
 from .report import FlowReport
 
-__all__ = ["Operator", "build_operator", "LinearSystem", "row_scale", "SystemBuilder", "LEAN_FROM"]
+__all__ = ["Operator", "build_operator", "LinearSystem", "compact_system", "solve_compact", "row_scale",
+           "SystemBuilder", "LEAN_FROM"]
 
 #: From this many vertices a single-step flow solves with CG on a :class:`~shapeflow.linalg.pairs.PairMatrix`
 #: (the diagonal and the operator's own pairs) instead of a CSR matrix: ~116 bytes per vertex less,
@@ -48,6 +49,7 @@ class Operator:
     umbrella_weights: np.ndarray   # (Q,) their weights e_ij
     umbrella_degree: np.ndarray    # Σ e_ij per vertex
     n_bad: int
+    curve: object = None    # the feature curves' CurveOperator (flow.features), None without sharp edges
 
 
 def build_operator(mesh: Mesh, V: np.ndarray, scheme: str, blender: bool, normalized: bool) -> Operator:
@@ -149,6 +151,53 @@ class LinearSystem:
         return labels, int(keep.sum())
 
 
+def compact_system(free: np.ndarray, c_all: np.ndarray, pairs: np.ndarray, weights: np.ndarray,
+                   degree: np.ndarray, rtol: float, *, drop: np.ndarray | None = None,
+                   method: str | None = None) -> LinearSystem:
+    """The system ``(C + D − W) X = C V + Σ_fixed e_ij X_j`` of an umbrella-type block (the boundary
+    umbrella, the feature curves) on the vertices ``free``, over the pairs ``pairs`` with weights
+    ``weights`` and their sums ``degree``: compact (its own rows), with ``C = c_all`` on them.
+    Terms of fixed neighbours move to the right-hand side, except those in ``drop``.  ``method``:
+    the solver (default LU below 20,000 rows, CG above)."""
+    idx = np.flatnonzero(free)
+    local = np.full(free.size, -1)
+    local[idx] = np.arange(idx.size)
+    c = c_all[idx]
+    q0, q1 = pairs[:, 0], pairs[:, 1]
+    both = free[q0] & free[q1]
+    rows = np.concatenate([local[q0[both]], local[q1[both]], np.arange(idx.size)])
+    cols = np.concatenate([local[q1[both]], local[q0[both]], np.arange(idx.size)])
+    vals = np.concatenate([-weights[both], -weights[both], c + degree[idx]])
+    A = sp.csr_matrix((vals, (rows, cols)), shape=(idx.size, idx.size))
+    # neighbours that are not free: their position enters the right-hand side
+    a = free[q0] & ~free[q1]
+    b = free[q1] & ~free[q0]
+    r = np.concatenate([q0[a], q1[b]])
+    s = np.concatenate([q1[a], q0[b]])
+    e = np.concatenate([weights[a], weights[b]])
+    if drop is not None:
+        keep = ~drop[s]
+        r, s, e = r[keep], s[keep], e[keep]
+    if method is None:
+        method = "lu" if idx.size < 20000 else "cg"
+    return LinearSystem(A, free, SPDSolver(A, method, rtol=rtol), (r, s, e), c, idx, local)
+
+
+def solve_compact(V: np.ndarray, X_fixed: np.ndarray, X: np.ndarray, block: LinearSystem, lam: float) -> None:
+    """Solve a compact block (:func:`compact_system`) at positions ``V``, its fixed neighbours at
+    ``X_fixed``; writes the block's rows of ``X``."""
+    r, s, e = block.coupling
+    rhs = block.c[:, None] * V[block.idx]
+    if r.size:
+        lr = block.local[r]
+        for k in range(3):
+            rhs[:, k] += np.bincount(lr, e * X_fixed[s, k], minlength=block.idx.size)
+    Xb = block.solver.solve(rhs, V[block.idx], overwrite_b=True)
+    if abs(lam) >= MEAN_RESTORE_FROM:
+        block.restore_means(Xb, V[block.idx])
+    X[block.idx] = Xb
+
+
 def row_scale(mass: np.ndarray, lam_abs: float, w: np.ndarray, rows: np.ndarray,
                coord_scale: float) -> np.ndarray:
     """C = m / (|λ| w) on ``rows`` (0 elsewhere).
@@ -186,8 +235,10 @@ class SystemBuilder:
     """
 
     def __init__(self, mesh: Mesh, *, w: np.ndarray, scheme: str, blender: bool, normalized: bool,
-                 method: str, rtol: float, lam_border: float):
+                 method: str, rtol: float, lam_border: float, sharp: np.ndarray | None = None):
         self.mesh = mesh
+        self.sharp = sharp          # (E,) sharp edges (flow.features), None: the plain flow
+        self.curves = None          # their classification, made with the first operator
         self.w = w
         self.scheme = scheme
         self.blender = blender
@@ -204,10 +255,28 @@ class SystemBuilder:
         if V is None:
             with self._op0_lock:
                 if self._op0 is None:
-                    self._op0 = build_operator(self.mesh, self.mesh.vertices, self.scheme, self.blender,
-                                                self.normalized)
+                    op = build_operator(self.mesh, self.mesh.vertices, self.scheme, self.blender, self.normalized)
+                    if self.sharp is not None:
+                        from .features import classify, curve_operator
+
+                        self.curves = classify(self.mesh, self.sharp, op.boundary)
+                        op.curve = curve_operator(self.mesh.vertices, self.curves, self.normalized)
+                    self._op0 = op
             return self._op0
-        return build_operator(self.mesh, V, self.scheme, self.blender, self.normalized)
+        op = build_operator(self.mesh, V, self.scheme, self.blender, self.normalized)
+        if self.sharp is not None:
+            from .features import curve_operator
+
+            op.curve = curve_operator(V, self.operator().curve.curves, self.normalized)
+        return op
+
+    def curve_system(self, operator: Operator, lam: float) -> LinearSystem | None:
+        """The feature curves' system for λ (None without sharp edges or nothing to solve)."""
+        if operator.curve is None:
+            return None
+        from .features import curve_system
+
+        return curve_system(operator.curve, lam, self.w, operator.locked, self._coord_scale, self.rtol)
 
     def method(self, n_free: int, kappa: float, n_solves: int, *, n_rows: int | None = None,
                lean: bool = False) -> str:
@@ -231,6 +300,9 @@ class SystemBuilder:
         w = self.w
         free = ~operator.boundary & ~operator.locked & (w > 0) & (operator.mass > 0) & (operator.deg > 0)
         indefinite = ~operator.boundary & ~operator.locked & (w > 0) & ((operator.mass < 0) | (operator.deg < 0))
+        if operator.curve is not None:     # feature vertices: boundary values of the surface solve
+            free &= ~operator.curve.feature
+            indefinite &= ~operator.curve.feature
         if indefinite.any():
             if self.blender:
                 free |= indefinite  # Blender solves these rows too; use LU below
@@ -302,29 +374,10 @@ class SystemBuilder:
         free &= np.isfinite(c_all)
         if not free.any():
             return None
-        idx = np.flatnonzero(free)
-        local = np.full(self.mesh.n_vertices, -1)
-        local[idx] = np.arange(idx.size)
-        c = c_all[idx]
-        q0, q1 = operator.umbrella_pairs[:, 0], operator.umbrella_pairs[:, 1]
-        both = free[q0] & free[q1]
-        rows = np.concatenate([local[q0[both]], local[q1[both]], np.arange(idx.size)])
-        cols = np.concatenate([local[q1[both]], local[q0[both]], np.arange(idx.size)])
-        ue = operator.umbrella_weights     # e_ij
-        vals = np.concatenate([-ue[both], -ue[both], c + operator.umbrella_degree[idx]])
-        A = sp.csr_matrix((vals, (rows, cols)), shape=(idx.size, idx.size))
-        # neighbours that are not free: their current position enters the right-hand side,
-        # except (Blender) a locked neighbour, whose term Blender leaves out of the row
-        a = free[q0] & ~free[q1]
-        b = free[q1] & ~free[q0]
-        r = np.concatenate([q0[a], q1[b]])
-        s = np.concatenate([q1[a], q0[b]])
-        e = np.concatenate([operator.umbrella_weights[a], operator.umbrella_weights[b]])
-        if self.blender:
-            keep = ~operator.locked[s]
-            r, s, e = r[keep], s[keep], e[keep]
-        method = "lu" if idx.size < 20000 else "cg"
-        return LinearSystem(A, free, SPDSolver(A, method, rtol=self.rtol), (r, s, e), c, idx, local)
+        # Blender leaves a locked neighbour's term out of the row
+        return compact_system(free, c_all, operator.umbrella_pairs, operator.umbrella_weights,
+                              operator.umbrella_degree, self.rtol,
+                              drop=operator.locked if self.blender else None)
 
     def solve_boundary(self, V: np.ndarray, boundary_sys: LinearSystem | None, *, copy: bool = True) -> np.ndarray:
         """Positions after the boundary block's solve (a copy of V elsewhere).
@@ -335,16 +388,7 @@ class SystemBuilder:
             return V
         X = V.copy()
         if boundary_sys is not None:
-            r, s, e = boundary_sys.coupling
-            rhs = boundary_sys.c[:, None] * V[boundary_sys.idx]
-            if r.size:
-                lr = boundary_sys.local[r]
-                for k in range(3):
-                    rhs[:, k] += np.bincount(lr, e * V[s, k], minlength=boundary_sys.idx.size)
-            Xb = boundary_sys.solver.solve(rhs, V[boundary_sys.idx], overwrite_b=True)
-            if abs(self.lam_border) >= MEAN_RESTORE_FROM:
-                boundary_sys.restore_means(Xb, V[boundary_sys.idx])
-            X[boundary_sys.idx] = Xb
+            solve_compact(V, V, X, boundary_sys, self.lam_border)
         return X
 
     def rescale_volume(self, V_before: np.ndarray, V_after: np.ndarray, axes: np.ndarray,

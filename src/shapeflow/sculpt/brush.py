@@ -62,6 +62,7 @@ from __future__ import annotations
 
 from .. import accel, params
 from ..errors import ParameterError
+from ..flow.features import SharpEdges
 from ..linalg.local import LOCAL_METHODS, LocalSolver
 from ..mesh import Mesh
 from ..operators.pattern import check_scheme
@@ -107,6 +108,14 @@ class Brush(CotanCache, DabSystem, BrushBase):
     rebuild_fraction : float
         Rebuild the spatial index when a vertex moved more than this × radius
         since it was built.
+    feature_angle, sharp_edges
+        Sharp edges, as in :func:`shapeflow.flow` (found once, on the mesh the
+        brush is made with).  A dab never drags a vertex across them: inside a
+        dab a vertex on two sharp edges moves along its feature curve (the
+        curve's own step, with the curve's fixed vertices, the dab's rim and
+        the solved boundary as boundary values), curve ends and corners stay,
+        and the other vertices take the feature vertices' new positions as
+        boundary values.
 
     Thread model
     ------------
@@ -129,7 +138,8 @@ class Brush(CotanCache, DabSystem, BrushBase):
     @accel.heavy
     def __init__(self, mesh: Mesh, *, lam: float = -50.0, radius: float, falloff: Falloff = None,
                  lam_border: float = 0.0, weights: Weights = None, scheme: str = "tqlbo", normalized: bool = True,
-                 solver: str = "auto", undo_limit: int = 64, rebuild_fraction: float = 0.15):
+                 solver: str = "auto", undo_limit: int = 64, rebuild_fraction: float = 0.15,
+                 feature_angle: float | None = None, sharp_edges: SharpEdges = None):
         super().__init__(mesh, radius=radius, falloff=falloff, weights=weights,
                          undo_limit=undo_limit, rebuild_fraction=rebuild_fraction)
         self.lam = lam
@@ -148,6 +158,7 @@ class Brush(CotanCache, DabSystem, BrushBase):
         self.solver = solver
         self._local_solver = LocalSolver(solver)   # reuses its work space dab after dab
         self._build()
+        self._build_features(self._mesh0, feature_angle, sharp_edges)
 
     @property
     @serialised

@@ -12,6 +12,7 @@ from ..geometry.normals import refresh_normals
 from ..mesh import WEIGHT, Mesh, Topology
 from ..mesh.convert import as_mesh
 from .attributes import child_corner_attribute, child_face_attribute
+from .creases import Creases, resolve_creases
 from .level import build_levels
 from .rules import (
     BOUNDARY_RULES,
@@ -23,6 +24,7 @@ from .rules import (
     check_levels,
     check_output_size,
     check_threads,
+    sharpness_crease,
 )
 
 __all__ = ["subdivide", "subdivision_matrix"]
@@ -31,7 +33,7 @@ __all__ = ["subdivide", "subdivision_matrix"]
 @accel.heavy
 def subdivision_matrix(mesh: Mesh, *, levels: int = 1, scheme: str = "catmull-clark",
                        boundary: str = "smooth", edge_order: str = "blender",
-                       blender_threads: int = 1) -> tuple[sp.csr_matrix, Topology]:
+                       blender_threads: int = 1, creases: Creases = None) -> tuple[sp.csr_matrix, Topology]:
     """The sparse subdivision matrix of ``levels`` steps, and the new faces.
 
     Parameters
@@ -53,6 +55,8 @@ def subdivision_matrix(mesh: Mesh, *, levels: int = 1, scheme: str = "catmull-cl
     blender_threads : int, default 1
         Threads of the Blender whose edge order is reproduced (matters only for
         meshes with 1000 faces or more).
+    creases : None, (edges (k, 2), values (k,)) or "mesh"
+        Semi-sharp creases, Blender's values in [0, 1] (see :func:`subdivide`).
 
     Returns
     -------
@@ -78,10 +82,11 @@ def subdivision_matrix(mesh: Mesh, *, levels: int = 1, scheme: str = "catmull-cl
     boundary = check_choice("boundary", boundary, BOUNDARY_RULES)
     edge_order = check_choice("edge_order", edge_order, EDGE_ORDERS)
     threads = check_threads(blender_threads)
+    sharp = resolve_creases(mesh if isinstance(mesh, Topology) else as_mesh(mesh), creases)
     t = as_topology(mesh)
     S = sp.identity(t.n_vertices, format="csr")
     topo = t
-    for mats, child in build_levels(t, levels, (scheme,), boundary, edge_order, threads):
+    for mats, child in build_levels(t, levels, (scheme,), boundary, edge_order, threads, creases=sharp):
         S = mats[scheme] @ S
         topo = child
     return S.tocsr(), topo
@@ -91,7 +96,7 @@ def subdivision_matrix(mesh: Mesh, *, levels: int = 1, scheme: str = "catmull-cl
 def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
               boundary: str = "smooth", weights_rule: str = "linear",
               edge_order: str = "blender", blender_threads: int = 1,
-              progress: Callable[[int, int], None] | None = None) -> Mesh:
+              progress: Callable[[int, int], None] | None = None, creases: Creases = None) -> Mesh:
     """Subdivide a mesh ``levels`` times, carrying its per-vertex attributes.
 
     Works on any mix of triangles, quads and n-gons, open or closed; after one
@@ -117,6 +122,16 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
     progress : callable(done, total), optional
         Called after each level.  The output's memory is estimated before
         the first level, and a subdivision that cannot fit is refused.
+    creases : None, (edges (k, 2), values (k,)) or "mesh"
+        Semi-sharp creases as Blender's Subdivision Surface takes them with
+        ``use_creases``: a value c in [0, 1] per edge (a pair of vertices of
+        an edge; one value for all, or one each), OpenSubdiv's sharpness 10·c²
+        (c = 1: infinitely sharp), fractional sharpness blending the smooth
+        and sharp rules and decreasing by 1 per level.  ``"mesh"``: the
+        ``creases`` of a subdivision result, or an OBJ's ``t crease`` tags.
+        The result carries ``result.creases`` = (edges, values): the halves of
+        every creased edge with their values one level down per level, so
+        subdividing it again with ``creases="mesh"`` continues the same surface.
 
     Returns
     -------
@@ -147,6 +162,8 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
     edge_order = check_choice("edge_order", edge_order, EDGE_ORDERS)
     threads = check_threads(blender_threads)
     params.progress(progress)
+    sharp = resolve_creases(mesh, creases)
+    carry = None if sharp is None else {}
 
     attrs: dict[str, np.ndarray] = {k: np.asarray(v) for k, v in mesh.attributes.items()}
     types = {k: v.dtype for k, v in attrs.items()}
@@ -161,7 +178,7 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
     # each level's matrix is applied as its two factors (S = P @ Q), which is
     # cheaper than forming S for a single use; subdivision_matrix() forms it
     for done, (mats, child) in enumerate(build_levels(mesh, levels, schemes, boundary, edge_order, threads,
-                                                 factored=True), start=1):
+                                                 factored=True, creases=sharp, carry=carry), start=1):
         S = mats[scheme]
         X = S @ X
         attrs = {k: (S @ v.reshape(v.shape[0], -1)).reshape((S.shape[0],) + v.shape[1:])
@@ -174,7 +191,11 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
         if progress is not None:
             progress(done, levels)
     if levels == 0:
-        return mesh.with_vertices(mesh.vertices)
+        out = mesh.with_vertices(mesh.vertices)
+        if sharp is not None:
+            e = np.flatnonzero(sharp > 0)
+            out.creases = (mesh.topology.edges[e].astype(np.int64), sharpness_crease(sharp[e]))
+        return out
     if weights is not None:
         attrs[WEIGHT] = np.clip(weights, 0.0, 1.0)  # convex combinations; clip round-off
     for k, v in attrs.items():   # every attribute in its own type: integers rounded into their range
@@ -185,5 +206,9 @@ def subdivide(mesh: Mesh, levels: int = 1, *, scheme: str = "catmull-clark",
         elif dt != v.dtype:
             attrs[k] = v.astype(dt)
     # normals (nx, ny, nz) were averaged like the rest: recomputed from the new surface, in their type
-    return refresh_normals(Mesh(X, None, attributes=attrs, corner_attributes=corner, face_attributes=face,
-                                metadata=mesh.metadata, _topology=topo))
+    out = refresh_normals(Mesh(X, None, attributes=attrs, corner_attributes=corner, face_attributes=face,
+                               metadata=mesh.metadata, _topology=topo))
+    if carry is not None:
+        pairs, values = carry["creases"]
+        out.creases = (pairs, sharpness_crease(values))
+    return out

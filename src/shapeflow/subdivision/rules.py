@@ -12,7 +12,7 @@ from ..mesh.convert import as_mesh
 __all__ = ["SCHEMES", "BOUNDARY_RULES", "WEIGHT_RULES", "EDGE_ORDERS", "INF", "SMOOTH", "DART", "CREASE", "CORNER",
            "BYTES_PER_FACE", "check_choice", "check_levels", "check_output_size", "check_threads", "as_topology",
            "nonmanifold_edge_mask", "multi_fan_vertices", "base_sharpness", "vertex_rules", "edge_point_order",
-           "face_point_matrix"]
+           "face_point_matrix", "SHARPNESS_INFINITE", "crease_sharpness", "sharpness_crease", "decremented"]
 
 #: accepted values of ``scheme``
 SCHEMES = ("catmull-clark", "simple")
@@ -116,17 +116,14 @@ def multi_fan_vertices(t: Topology, manifold_edge: np.ndarray) -> np.ndarray:
     return bad
 
 
-def base_sharpness(t: Topology, boundary: str) -> tuple[np.ndarray, np.ndarray]:
-    """Per-edge and per-vertex sharpness (0 or inf) of the input mesh.
-
-    This is where user creases would be merged in (``max`` with given edge and
-    vertex sharpness) once semi-sharp creases are supported.
-    """
+def base_sharpness(t: Topology, boundary: str, creases: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Per-edge and per-vertex sharpness of the input mesh: inf where the topology makes it sharp,
+    else the creases' sharpness (OpenSubdiv units, :func:`crease_sharpness`; None: 0)."""
     n = t.n_vertices
     efc = t.edge_face_count
     boundary_edge = efc < 2
     nonman_edge = nonmanifold_edge_mask(t)
-    edge_sharp = np.zeros(t.n_edges)
+    edge_sharp = np.zeros(t.n_edges) if creases is None else creases.copy()
     edge_sharp[boundary_edge | nonman_edge] = INF
 
     e = t.edges
@@ -144,6 +141,28 @@ def base_sharpness(t: Topology, boundary: str) -> tuple[np.ndarray, np.ndarray]:
     if boundary == "keep-corners":
         vertex_sharp[(n_faces == 1) & (n_edges == 2)] = INF
     return edge_sharp, vertex_sharp
+
+
+#: OpenSubdiv's infinite sharpness (Sdc::Crease::SHARPNESS_INFINITE): a crease of 1 in Blender
+SHARPNESS_INFINITE = 10.0
+
+
+def crease_sharpness(c: np.ndarray) -> np.ndarray:
+    """Blender's edge crease c in [0, 1] as OpenSubdiv's sharpness, 10·c² (Blender's
+    ``crease_to_sharpness``); 10 and more is infinitely sharp (inf here)."""
+    s = 10.0 * np.square(np.asarray(c, dtype=np.float64))
+    return np.where(s >= SHARPNESS_INFINITE, INF, s)
+
+
+def sharpness_crease(s: np.ndarray) -> np.ndarray:
+    """The inverse of :func:`crease_sharpness`: sqrt(s/10), 1 for infinite sharpness."""
+    return np.sqrt(np.minimum(np.asarray(s, dtype=np.float64), SHARPNESS_INFINITE) / SHARPNESS_INFINITE)
+
+
+def decremented(s: np.ndarray) -> np.ndarray:
+    """The sharpness of an edge's halves one level down (OpenSubdiv's uniform rule): s − 1, 0 from
+    s <= 1 on, inf stays inf."""
+    return np.where(s > 1.0, s - 1.0, 0.0)
 
 
 def vertex_rules(t: Topology, edge_sharp: np.ndarray, vertex_sharp: np.ndarray) -> np.ndarray:

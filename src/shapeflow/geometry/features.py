@@ -1,0 +1,243 @@
+"""Sharp (feature) edges: by dihedral angle, from a list of vertex pairs, or as a file marks them.
+
+* :func:`dihedral_angles` / :func:`angle_sharp_edges`: an edge with exactly two faces is
+  sharp when the angle between the two faces' normals exceeds the feature angle.  A face's
+  normal is the direction of its vector area (:func:`~shapeflow.geometry.measures.face_vector_areas`,
+  the normal of any polygon, planar or not); when the two faces run through the edge in the same
+  direction (inconsistent orientation) one normal is reversed first, so the angle is the bend
+  of the surface, not of its orientation.  Boundary edges (one face) are never sharp by angle —
+  the flow's boundary factor governs them; edges with three or more faces (non-manifold) always
+  are; an edge next to a zero-area face (no normal) is not.
+* :func:`edge_ids`: a ``(k, 2)`` array of vertex pairs as edge ids, refusing a pair that is not
+  an edge of the mesh (:class:`~shapeflow.errors.ParameterError` naming the row).
+* :func:`file_sharp_edges` and :func:`file_creases`: what an OBJ file marks: the borders of
+  smoothing groups (``s``: an edge between faces of different groups, or next to a face with
+  ``s off`` / ``s 0``, is sharp) and OpenSubdiv ``t crease`` tags (kept by the OBJ reader as
+  ``mesh.metadata["obj"]["elements"]``, read here while the vertex numbering they refer to
+  holds).
+
+Everything is vectorised over edges and faces.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+
+from .. import accel, params
+from ..errors import ParameterError
+from .measures import face_vector_areas, pow2_exponent
+
+__all__ = ["dihedral_angles", "angle_sharp_edges", "edge_ids", "check_feature_angle", "smoothing_group_edges",
+           "file_creases", "file_sharp_edges", "OFF_GROUPS"]
+
+#: smoothing-group names that mean "not smoothed" (``s off``, ``s 0``) and faces before any ``s`` line
+OFF_GROUPS = ("", "off", "0")
+
+
+def check_feature_angle(angle) -> float:
+    """A feature angle in degrees, in [0, 180]."""
+    return params.number("feature_angle", angle, lo=0.0, hi=180.0)
+
+
+def _two_face_edges(t):
+    """Edge ids with exactly two faces, their two faces, and whether both faces run the edge the same way."""
+    two = np.flatnonzero(t.edge_face_count == 2)
+    o = t.edge_corner_offsets[two]
+    c0 = t.edge_corners[o]
+    c1 = t.edge_corners[o + 1]
+    fi = t.face_indices
+    return two, t.corner_face[c0], t.corner_face[c1], fi[c0] == fi[c1]
+
+
+def dihedral_angles(mesh, vertices: np.ndarray | None = None) -> np.ndarray:
+    """(E,) angle in degrees between the normals of each edge's two faces (edges of ``mesh.topology.edges``).
+
+    NaN for edges without exactly two faces, and next to a face of zero area.
+    """
+    t = mesh.topology
+    out = np.full(t.n_edges, np.nan)
+    two, f0, f1, same = _two_face_edges(t)
+    if two.size == 0:
+        return out
+    fa = face_vector_areas(mesh, mesh.vertices if vertices is None else vertices)
+    a, b = fa[f0], fa[f1]
+    b[same] *= -1.0                       # inconsistent orientation: the bend, not the flip
+    cross = np.cross(a, b)
+    sin = np.sqrt(np.einsum("ij,ij->i", cross, cross))
+    cos = np.einsum("ij,ij->i", a, b)
+    ok = (np.einsum("ij,ij->i", a, a) > 0) & (np.einsum("ij,ij->i", b, b) > 0)
+    out[two[ok]] = np.degrees(np.arctan2(sin[ok], cos[ok]))
+    return out
+
+
+def angle_sharp_edges(mesh, angle: float, vertices: np.ndarray | None = None) -> np.ndarray:
+    """(E,) mask: edges whose dihedral angle exceeds ``angle`` degrees, and non-manifold edges.
+
+    The cosine of the angle decides (one dot product of unit normals per edge); edges within 1e-6
+    of the threshold's cosine are decided by the angle itself, from ``atan2(|a × b|, a · b)``.
+    Compiled twin: :func:`shapeflow.geometry.compiled.angle_sharp_edges` (one pass over the corners).
+    """
+    angle = check_feature_angle(angle)
+    t = mesh.topology
+    V = mesh.vertices if vertices is None else vertices
+    k = pow2_exponent(V)
+    if k:      # normals are scale-free: an exact power-of-two copy keeps the areas in range
+        V = np.ldexp(V, -k)
+    fast = accel.compiled("geometry", t.n_vertices)
+    if fast is not None and t.n_edges:
+        return fast.angle_sharp_edges(t.face_offsets, t.face_indices, t.corner_edge, t.n_edges,
+                                      np.ascontiguousarray(V, dtype=np.float64), angle)
+    sharp = t.edge_face_count > 2
+    two, f0, f1, same = _two_face_edges(t)
+    if two.size == 0:
+        return sharp
+    fa = face_vector_areas(mesh, V)
+    ln = np.sqrt(fa[:, 0] * fa[:, 0] + fa[:, 1] * fa[:, 1] + fa[:, 2] * fa[:, 2])
+    ok = ln > 0
+    inv = np.divide(1.0, ln, out=np.zeros_like(ln), where=ok)
+    nx, ny, nz = (fa[:, k] * inv for k in range(3))
+    cos = nx[f0] * nx[f1] + ny[f0] * ny[f1] + nz[f0] * nz[f1]
+    if same.any():                        # inconsistent orientation: the bend, not the flip
+        cos[same] *= -1.0
+    c = float(np.cos(np.radians(angle)))
+    hit = (cos < c) & ok[f0] & ok[f1]
+    near = np.flatnonzero(np.abs(cos - c) < 1e-6)
+    if near.size:
+        a = np.stack([nx[f0[near]], ny[f0[near]], nz[f0[near]]], axis=1)
+        b = np.stack([nx[f1[near]], ny[f1[near]], nz[f1[near]]], axis=1)
+        cr = np.cross(a, b)
+        sin = np.sqrt(cr[:, 0] * cr[:, 0] + cr[:, 1] * cr[:, 1] + cr[:, 2] * cr[:, 2])
+        exact = np.degrees(np.arctan2(sin, cos[near]))
+        hit[near] = (exact > angle) & ok[f0[near]] & ok[f1[near]]
+    sharp[two[hit]] = True
+    return sharp
+
+
+def _edge_keys(t) -> tuple[np.ndarray, np.ndarray]:
+    """Sorted keys lo·n + hi of the mesh's edges and the edge id of each."""
+    e = t.edges
+    key = e[:, 0].astype(np.int64) * np.int64(max(t.n_vertices, 1)) + e[:, 1]
+    if key.size > 1 and not (key[1:] > key[:-1]).all():
+        order = np.argsort(key, kind="stable")
+        return key[order], order
+    return key, np.arange(key.size)
+
+
+def edge_ids(mesh, pairs, name: str = "sharp_edges") -> np.ndarray:
+    """Edge ids (into ``mesh.topology.edges``) of the vertex pairs ``pairs`` (k, 2).
+
+    Raises ParameterError naming ``name`` and the first row that is not an edge of the mesh.
+    ``mesh`` may be a Mesh or its Topology.
+    """
+    t = getattr(mesh, "topology", mesh)
+    n = t.n_vertices
+    a = params.real_array(name, pairs)
+    if a.size == 0:
+        return np.zeros(0, np.int64)
+    if a.ndim != 2 or a.shape[1] != 2:
+        raise ParameterError(f"{name} must be a (k, 2) array of vertex pairs, got shape {a.shape}")
+    bad = np.flatnonzero(~(np.isfinite(a) & (a == np.round(a))).all(axis=1))
+    if bad.size:
+        i = int(bad[0])
+        raise ParameterError(f"{name}: row {i} {a[i].tolist()} is not a pair of vertex indices")
+    bad = np.flatnonzero(((a < 0) | (a >= n)).any(axis=1))
+    if bad.size:
+        i = int(bad[0])
+        raise ParameterError(f"{name}: row {i} {a[i].astype(np.int64).tolist()} names a vertex outside "
+                             f"[0, {n})")
+    p = a.astype(np.int64)
+    lo, hi = np.minimum(p[:, 0], p[:, 1]), np.maximum(p[:, 0], p[:, 1])
+    key = lo * np.int64(max(n, 1)) + hi
+    keys, ids = _edge_keys(t)
+    pos = np.minimum(np.searchsorted(keys, key), max(keys.size - 1, 0))
+    found = keys[pos] == key if keys.size else np.zeros(key.size, bool)
+    bad = np.flatnonzero(~found)
+    if bad.size:
+        i = int(bad[0])
+        raise ParameterError(f"{name}: row {i} ({int(p[i, 0])}, {int(p[i, 1])}) is not an edge of the mesh"
+                             + (f" ({bad.size} such rows)" if bad.size > 1 else ""))
+    return ids[pos]
+
+
+def smoothing_group_edges(mesh) -> np.ndarray:
+    """(E,) mask: borders of OBJ smoothing groups (face attribute ``"smooth"``); all False without it.
+
+    An edge with two faces is sharp when their groups differ or either face is not smoothed
+    (``s off``, ``s 0``, or no ``s`` line before it); an edge with three or more faces when
+    any two of them differ so.  Boundary edges are not sharp.
+    """
+    t = mesh.topology
+    out = np.zeros(t.n_edges, bool)
+    lab = mesh.face_attributes.get("smooth")
+    if lab is None or not hasattr(lab, "codes") or t.n_edges == 0:
+        return out
+    names = np.array(list(lab.names) + [""], dtype=object)
+    off = np.isin(names, OFF_GROUPS)
+    codes = np.where(lab.codes >= 0, lab.codes, len(lab.names))
+    group = np.where(off[codes], -1, codes)                    # -1: not smoothed
+    g = group[t.corner_face[t.edge_corners]]                    # per edge-corner, grouped edge by edge
+    o = t.edge_corner_offsets
+    cnt = np.diff(o)
+    first = np.repeat(g[o[:-1]], cnt)
+    differs = (g != first) | (g < 0)
+    hit = np.add.reduceat(differs.astype(np.int64), o[:-1]) > 0 if g.size else out
+    out[:] = hit & (cnt >= 2)
+    return out
+
+
+_CREASE = re.compile(r"^t[ \t]+crease[ \t]+(\d+)/(\d+)(?:/\d+)?[ \t]+([^\n]*)$", re.MULTILINE)
+
+
+def file_creases(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """The OpenSubdiv ``t crease`` tags an OBJ reader kept: (pairs (k, 2), sharpness (k,)).
+
+    A tag ``t crease N/F v1 .. vN s1 .. sF`` creases the N − 1 edges of the chain v1 … vN
+    (0-based vertex numbers, OpenSubdiv's convention; RenderMan's chain reading of N > 2) with
+    one sharpness for all (F = 1) or one each (F = N − 1); negative sharpness counts as 0, as
+    OpenSubdiv clamps it.  Empty when the mesh has no such tags or its vertex numbering changed
+    since it was read.  Raises ParameterError for a malformed tag.
+    """
+    meta = mesh.metadata.get("obj") or {}
+    elements = meta.get("elements") or ()
+    empty = (np.zeros((0, 2), np.int64), np.zeros(0))
+    of = meta.get("elements_of")
+    if not elements or of is None or of[0] != mesh.n_vertices or not np.array_equal(of[1], mesh.face_indices):
+        return empty
+    tags = _CREASE.findall("\n".join(map(" ".join, elements)))     # the kept 'l', 'p' and 't' lines
+    if not tags:
+        return empty
+    cols = np.array(tags, dtype=str)
+    nv, nf = cols[:, 0].astype(np.int64), cols[:, 1].astype(np.int64)
+    try:
+        vals = np.array(" ".join(cols[:, 2]).split(), dtype=np.float64)
+    except ValueError:
+        raise ParameterError("sharp_edges='mesh': a 't crease' tag holds a value that is not a number") from None
+    ne = np.maximum(nv - 1, 0)
+    bad = np.flatnonzero((nv < 2) | ((nf != 1) & (nf != ne)))
+    if bad.size or vals.size != int((nv + nf).sum()):
+        i = int(bad[0]) if bad.size else 0
+        raise ParameterError(f"sharp_edges='mesh': 't crease {nv[i]}/{nf[i]}' tag {i} does not list a chain of "
+                             "at least 2 vertices and one sharpness or one per edge")
+    start = np.cumsum(nv + nf) - (nv + nf)                    # where each tag's values begin
+    tag = np.repeat(np.arange(nv.size), ne)
+    k = np.arange(tag.size) - np.repeat(np.cumsum(ne) - ne, ne)   # edge number within its tag
+    v = vals[start[tag] + k]
+    w = vals[start[tag] + k + 1]
+    s = vals[start[tag] + nv[tag] + np.where(nf[tag] == 1, 0, k)]
+    if np.isnan(s).any():
+        raise ParameterError("sharp_edges='mesh': a 't crease' tag has a sharpness that is not a number")
+    s = np.maximum(s, 0.0)
+    pairs = np.stack([v, w], axis=1)
+    edge_ids(mesh, pairs, "the file's 't crease' tags")       # every pair must be an edge
+    return pairs.astype(np.int64), s
+
+
+def file_sharp_edges(mesh) -> np.ndarray:
+    """(E,) mask of the edges the file marks sharp: smoothing-group borders and creased edges (sharpness > 0)."""
+    out = smoothing_group_edges(mesh)
+    pairs, s = file_creases(mesh)
+    if s.size:
+        out[edge_ids(mesh, pairs[s > 0], "the file's 't crease' tags")] = True
+    return out
