@@ -50,7 +50,25 @@ def pxr_error(exc: Exception) -> str:
 
 #: seconds a crate file's trial opening may take
 PROBE_SECONDS = 120.0
-_PROBE = "import sys\nfrom pxr import Sdf\nSdf.Layer.FindOrOpen(sys.argv[1])\n"
+_PROBE = """import sys
+try:
+    import resource
+except ImportError:          # no address-space limits here (Windows): only the time limit holds
+    resource = None
+if resource is not None:
+    limit = int(sys.argv[2])
+    soft, hard = resource.getrlimit(resource.RLIMIT_AS)
+    for bound in (soft, hard):
+        if bound != resource.RLIM_INFINITY:
+            limit = min(limit, bound) if limit else bound
+    if limit:
+        resource.setrlimit(resource.RLIMIT_AS, (limit, hard))
+from pxr import Sdf
+try:
+    Sdf.Layer.FindOrOpen(sys.argv[1])
+except Exception:
+    pass                    # an error pxr reports: the opening in the parent names it
+"""
 
 
 def _is_crate(path: str) -> bool:
@@ -62,18 +80,24 @@ def _is_crate(path: str) -> bool:
 
 
 def _probe_crate(path: str, name: str, what: str) -> None:
-    """Open a binary crate file once in a child process first: some damaged crates make usd-core
-    end the whole process (an uncaught ``std::bad_alloc`` in one of its threads, usd-core 26.11),
-    which no check in this process could catch.  A child that dies by a signal or runs past
-    :data:`PROBE_SECONDS` is a :class:`MeshError`; one that fails otherwise leaves the message to
-    the opening here.  Costs one interpreter start and pxr's import (~0.3 s)."""
+    """Open a binary crate file once in a child process first, its address space limited to the
+    memory this machine has available: some damaged crates make usd-core allocate without bound
+    (~20 GB for a 3 KB file) or end the whole process (an uncaught ``std::bad_alloc`` in one of its
+    threads: abort, segfault or exit 127 from its crash handler; usd-core 26.11), which no check in
+    this process could catch.  A child that does not end normally, or runs past
+    :data:`PROBE_SECONDS`, is a :class:`MeshError`.  Costs one interpreter start and pxr's import
+    (~0.3 s)."""
+    from ..budget import available_bytes
+
+    room = available_bytes() or 0
     try:
-        proc = subprocess.run([sys.executable, "-c", _PROBE, path], stdin=subprocess.DEVNULL,
+        proc = subprocess.run([sys.executable, "-c", _PROBE, path, str(room)], stdin=subprocess.DEVNULL,
                               stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, timeout=PROBE_SECONDS)
     except subprocess.TimeoutExpired:
         raise MeshError(f"{name}: {what} takes the USD library (pxr) over {PROBE_SECONDS:.0f} s to open") from None
-    if proc.returncode < 0:
-        raise MeshError(f"{name}: {what} makes the USD library (pxr) crash (signal {-proc.returncode}): "
+    if proc.returncode != 0:
+        how = f"signal {-proc.returncode}" if proc.returncode < 0 else f"exit status {proc.returncode}"
+        raise MeshError(f"{name}: {what} makes the USD library (pxr) crash or run out of memory ({how}): "
                         "a damaged crate file")
 
 
