@@ -9,7 +9,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 DATA_SUFFIXES = {".obj", ".npz", ".json", ".txt"}
-MAX_BYTES = 5_000_000
+MAX_BYTES = 6_000_000
 
 
 def data_files() -> dict[str, Path]:
