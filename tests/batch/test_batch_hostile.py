@@ -424,3 +424,81 @@ def test_on_a_terminal_only_the_batch_bar(data, tmp_path):
     bars = [seg for seg in re.split(r"[\r\n]", text) if "%|" in seg]
     assert bars and all(seg.lstrip("\x1b[A ").startswith("batch:") for seg in bars), bars
     assert "files/s, ETA" not in text and "flow:" not in text
+
+
+def test_a_relative_outdir_is_confined_as_an_absolute_one(data, tmp_path):
+    """OUTDIR given relative to the current folder: links planted in it (its manifest, its batch
+    folder, a folder of outputs) lead nowhere outside, as with an absolute OUTDIR."""
+    root, good = data
+    (tmp_path / "in" / "z" / "sub").mkdir(parents=True)
+    (tmp_path / "in" / "z" / "sub" / "t.obj").write_bytes(good[0].read_bytes())
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "victim.txt").write_text("precious\n")
+    for planted, target in (("shapeflow-batch.jsonl", outside / "victim.txt"), (".shapeflow-batch", outside)):
+        (tmp_path / "out").mkdir()
+        (tmp_path / "out" / planted).symlink_to(target)
+        before = tree(outside)
+        run = batch("in", "out", *OP, cwd=tmp_path)
+        assert run.returncode == 2 and "would be written outside OUTDIR 'out'" in run.stderr, run.stderr
+        assert tree(outside) == before
+        (tmp_path / "out" / planted).unlink()
+        os.rmdir(tmp_path / "out")
+    (tmp_path / "out").mkdir()
+    (tmp_path / "out" / "z").symlink_to(outside)               # a folder of outputs leading out
+    before = tree(outside)
+    run = batch("in", "out", *OP, cwd=tmp_path)
+    assert run.returncode == 1, run.stderr
+    (rec,) = records(tmp_path / "out")
+    assert rec["status"] == "failed" and "would be written outside OUTDIR 'out'" in rec["error"]
+    assert tree(outside) == before                             # no folder made there, nothing written
+
+
+def test_outputs_never_replace_an_input_or_a_file_the_batch_did_not_write(data, tmp_path):
+    root, good = data
+    src = tmp_path / "in"
+    (src / "out").mkdir(parents=True)
+    (src / "a.obj").write_bytes(good[0].read_bytes())
+    (src / "out" / "a.obj").write_bytes(good[1].read_bytes())   # an input where a.obj's output would go
+    (tmp_path / "list.txt").write_text(f"{src / 'a.obj'}\n{src / 'out' / 'a.obj'}\n")
+    run = batch(tmp_path / "list.txt", src / "out", *OP)
+    assert run.returncode == 2
+    assert run.stderr.splitlines()[-1] == (
+        f"shapeflow batch: error: the output of '{src / 'a.obj'}' would overwrite the input "
+        f"'{src / 'out' / 'a.obj'}'; choose an OUTDIR that holds no input")
+    assert (src / "out" / "a.obj").read_bytes() == good[1].read_bytes()
+
+    # OUTDIR inside INPUTS already holding the user's own file where an output goes: that file fails
+    mine = tmp_path / "in6"
+    (mine / "sub").mkdir(parents=True)
+    (mine / "y.obj").write_bytes(good[0].read_bytes())
+    (mine / "sub" / "y.obj").write_bytes(good[1].read_bytes())
+    run = batch(mine, mine / "sub", *OP)
+    assert run.returncode == 1, run.stderr
+    (rec,) = records(mine / "sub")
+    assert rec["status"] == "failed" and rec["error"] == (
+        f"{mine / 'sub' / 'y.obj'} exists and was not written by shapeflow batch: move it away, or give --force "
+        "to replace it")
+    assert (mine / "sub" / "y.obj").read_bytes() == good[1].read_bytes()
+    run = batch("--force", mine, mine / "sub", *OP)
+    assert run.returncode == 0, run.stderr
+    assert (mine / "sub" / "y.obj").read_bytes() == reference(mine / "y.obj", tmp_path)
+
+
+def test_a_manifest_that_cannot_be_written_is_named(tmp_path, monkeypatch):
+    from shapeflow.batch.manifest import Manifest
+    from shapeflow.errors import OutputError
+
+    with Manifest(str(tmp_path)) as m:
+        class Full:
+            def write(self, text):
+                raise OSError(28, "No space left on device")
+
+            flush = fileno = close = lambda self: None
+
+        real, m._file = m._file, Full()
+        with pytest.raises(OutputError) as exc:
+            m.append({"input": "a.obj"})
+        assert str(exc.value) == (f"the manifest '{tmp_path / 'shapeflow-batch.jsonl'}' cannot be written: "
+                                  "No space left on device")
+        m._file = real

@@ -16,6 +16,7 @@ from __future__ import annotations
 import datetime
 import hashlib
 import itertools
+import dataclasses
 import os
 import shutil
 import time
@@ -25,7 +26,7 @@ from .. import params
 from ..errors import ParameterError
 from .cluster import deferred_signals, distributed_module, local_cluster
 from .inputs import filesystem, is_url, plan
-from .manifest import MANIFEST_NAME, Manifest, input_stamp
+from .manifest import MANIFEST_NAME, STATE_DIR, Manifest, input_stamp
 from .operation import Operation, parse_operation
 from .paths import OutsideOutdir, confine
 from .progress import Progress
@@ -153,6 +154,8 @@ def run(inputs: str | Sequence[str], outdir: str, operation: str | Sequence[str]
             on_notice(text)
 
     planned = plan(inputs, outdir, lambda ext: op.output_suffix(ext, format))   # nothing made before this
+    # a first batch into OUTDIR (no manifest, no batch folder yet) finds no output of its own there
+    first = not any(os.path.lexists(os.path.join(outdir, n)) for n in (MANIFEST_NAME, STATE_DIR))
     made = _make_folder(outdir)
     try:
         with Manifest(outdir) as manifest:
@@ -162,7 +165,7 @@ def run(inputs: str | Sequence[str], outdir: str, operation: str | Sequence[str]
             latest = manifest.latest(found)
             for text in found:
                 notice(text)
-            todo, skipped = _split_done(planned.jobs, latest, digest, force, notice)
+            todo, skipped = _split_done(planned.jobs, latest, digest, force, notice, first=first)
             report.skipped = skipped
             _process(todo, planned.jobs, op, format, digest, timeout, max_memory, manifest, report,
                      (client, scheduler, workers, retries, dashboard), (progress, progress_interval), on_start)
@@ -208,11 +211,19 @@ def _n(k: int) -> str:
     return f"{k} file{'s' if k != 1 else ''} done before"
 
 
-def _split_done(jobs, latest: dict, digest: str, force: bool, notice) -> tuple[list, list]:
-    """(jobs to do, sources skipped as done before); says how many done before are done again."""
+def _split_done(jobs, latest: dict, digest: str, force: bool, notice, *, first: bool = False) -> tuple[list, list]:
+    """(jobs to do, sources skipped as done before); says how many done before are done again.
+
+    On a ``first`` batch into OUTDIR, a file already at an output's path is someone else's (OUTDIR
+    inside INPUTS holding the user's files, say): that file fails, unless ``force``."""
     todo, skipped = [], []
     changed = forced = other = 0
     for j in jobs:
+        if first and not force and not j.error and os.path.lexists(j.output):
+            j = dataclasses.replace(j, error=f"{j.output} exists and was not written by shapeflow batch: "
+                                             "move it away, or give --force to replace it")
+            todo.append(j)
+            continue
         r = latest.get(j.source)
         if r is None or r["status"] != "done" or j.error:
             todo.append(j)

@@ -316,6 +316,7 @@ def plan(inputs, outdir: str, suffix_for) -> Plan:
     pairs, notices = _inputs(inputs, outdir)
     jobs: list[Job] = []
     seen: dict[str, str] = {}
+    local = {os.path.normcase(os.path.realpath(s)): s for s, r in pairs if not is_url(s) and isinstance(r, str)}
     for source, rel in pairs:
         if isinstance(rel, Exception):
             jobs.append(Job(source, "", "", str(rel)))
@@ -332,6 +333,10 @@ def plan(inputs, outdir: str, suffix_for) -> Plan:
                                  "give --format or separate batches")
         if not is_url(source) and os.path.abspath(source) == os.path.abspath(out):
             raise ParameterError(f"the output of {source!r} would overwrite it; choose another OUTDIR")
+        other = local.get(os.path.normcase(os.path.realpath(out)))
+        if other is not None:
+            raise ParameterError(f"the output of {source!r} would overwrite the input {other!r}; "
+                                 "choose an OUTDIR that holds no input")
         seen[key] = source
         jobs.append(Job(source, rel, out))
     return Plan(jobs, notices)

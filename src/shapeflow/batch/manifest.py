@@ -17,7 +17,7 @@ import os
 import re
 from typing import Iterator
 
-from ..errors import ParameterError
+from ..errors import OutputError, ParameterError
 from .paths import confine
 
 __all__ = ["Manifest", "MANIFEST_NAME", "STATE_DIR"]
@@ -157,8 +157,11 @@ class Manifest:
         return self
 
     def append(self, record: dict) -> None:
-        self._file.write(json.dumps(record, ensure_ascii=False, default=str) + "\n")
-        self._file.flush()
+        try:
+            self._file.write(json.dumps(record, ensure_ascii=False, default=str) + "\n")
+            self._file.flush()
+        except OSError as exc:      # a full disk: say which file could not be written
+            raise OutputError(f"the manifest {self.path!r} cannot be written: {exc.strerror or exc}") from exc
 
     def close(self) -> None:
         if self._file is not None:

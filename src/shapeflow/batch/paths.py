@@ -59,7 +59,8 @@ def _inside(path: str, root: str) -> bool:
 
 
 def confine(outdir: str, path: str, what: str = "output") -> str:
-    """``path`` (a file or folder under ``outdir``), proven inside OUTDIR; else :class:`OutsideOutdir`.
+    """``path`` (a file or folder under ``outdir``, as file operations take it: absolute or relative to
+    the current folder, like ``outdir`` itself), proven inside OUTDIR; else :class:`OutsideOutdir`.
 
     Proven means: no NUL character; no part longer than :data:`NAME_MAX` bytes and the whole
     under :data:`PATH_MAX`; lexically under ``outdir`` (``..`` cannot leave it); and with every
@@ -69,7 +70,7 @@ def confine(outdir: str, path: str, what: str = "output") -> str:
     if "\0" in path or "\0" in outdir:
         raise OutsideOutdir(f"{what} {path!r}: a path cannot hold a NUL character")
     base = os.path.abspath(outdir)
-    full = os.path.abspath(os.path.join(outdir, path) if not os.path.isabs(path) else path)
+    full = os.path.abspath(path)
     rel = os.path.relpath(full, base)
     if rel == os.pardir or rel.startswith(os.pardir + os.sep) or os.path.isabs(rel):
         raise OutsideOutdir(f"{what} {path!r} is outside OUTDIR {outdir!r}")
