@@ -101,10 +101,12 @@ def test_sizes_and_estimates(tmp_path):
         assert header_vertices(str(tmp_path / f"m{ext}")) == m.n_vertices
     sf.save(tmp_path / "m.stl", m)
     assert header_vertices(str(tmp_path / "m.stl")) == 3 * sf.load(tmp_path / "m.stl").n_faces
-    one = estimate_peak_bytes(1000, (("smooth", "-s", "1"),))
-    assert estimate_peak_bytes(1000, (("subdivide", "--levels", "2"),)) >= 4 * estimate_peak_bytes(
-        1000, (("subdivide", "-l1"),)) > one
-    assert estimate_peak_bytes(1000, (("family", "--lambdas", "0,1,2,3"),)) > one
+    def estimate(n, operation):
+        return estimate_peak_bytes(n, parse_operation(operation).options)
+
+    one = estimate(1000, "smooth -s 1")
+    assert estimate(1000, "subdivide --levels 2") >= 4 * estimate(1000, "subdivide -l1") > one
+    assert estimate(1000, "family --lambdas 0,1,2,3") > one
 
 
 def test_process_file_in_a_plain_pool(tree, tmp_path):
