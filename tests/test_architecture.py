@@ -5,7 +5,8 @@
   the pairs in ``NEVER`` never import each other's way even within a layer; the parts of the
   package import each other in no circle (the listed exceptions aside);
 * size: no module over ``MODULE_LINES`` lines, no function body over ``FUNCTION_LINES``
-  lines unless its ``def`` line carries a ``# long: <reason>`` comment;
+  lines unless its ``def`` line carries a ``# long: <reason>`` comment, no test file over
+  ``TEST_FILE_LINES`` lines;
 * privacy: no leading-underscore name of a shapeflow module is imported or used as an
   attribute of a module outside it (source and tests).
 """
@@ -44,6 +45,7 @@ NEVER = {
 }
 MODULE_LINES = 600
 FUNCTION_LINES = 80
+TEST_FILE_LINES = 800
 
 
 def modules():
@@ -173,6 +175,13 @@ def test_no_circle_among_the_parts():
 def test_module_size(name, path):
     lines = len(path.read_text().splitlines())
     assert lines <= MODULE_LINES, f"{path.relative_to(ROOT)} has {lines} lines"
+
+
+def test_no_test_file_is_too_long():
+    sizes = {p.relative_to(ROOT).as_posix(): len(p.read_text().splitlines()) for p in (ROOT / "tests").rglob("*.py")}
+    assert len(sizes) > 50                                  # the tests are read at all
+    long = {name: n for name, n in sorted(sizes.items()) if n > TEST_FILE_LINES}
+    assert not long, long
 
 
 def _body_lines(fn) -> int:
