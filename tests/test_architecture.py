@@ -4,6 +4,7 @@
   function-level imports alike), with the exceptions listed in ``UPWARD`` and their reasons;
   the pairs in ``NEVER`` never import each other's way even within a layer; the parts of the
   package import each other in no circle (the listed exceptions aside);
+* the map: docs/architecture.md names every module of the package;
 * size: no module over ``MODULE_LINES`` lines, no function body over ``FUNCTION_LINES``
   lines unless its ``def`` line carries a ``# long: <reason>`` comment, no test file over
   ``TEST_FILE_LINES`` lines;
@@ -46,6 +47,7 @@ NEVER = {
 MODULE_LINES = 600
 FUNCTION_LINES = 80
 TEST_FILE_LINES = 800
+ARCHITECTURE = ROOT / "docs" / "architecture.md"
 
 
 def modules():
@@ -169,6 +171,19 @@ def test_no_circle_among_the_parts():
     bad = [f"{' <-> '.join(c)}: " + "; ".join(t for a in c for b in c for t in graph.get(a, {}).get(b, [])[:2])
            for c in circles(graph)]
     assert not bad, "\n".join(bad)
+
+
+def test_every_module_is_on_the_map():
+    """docs/architecture.md names every module by its path in the package (a package's
+    ``__init__.py`` may be named by its folder, ``accel/``)."""
+    text = ARCHITECTURE.read_text()
+    missing = []
+    for p in sorted(SRC.rglob("*.py")):
+        rel = p.relative_to(SRC).as_posix()
+        folder = rel[:-len("__init__.py")] if p.name == "__init__.py" else ""
+        if f"`{rel}`" not in text and not (folder and f"`{folder}`" in text):
+            missing.append(rel)
+    assert not missing, f"docs/architecture.md does not name: {', '.join(missing)}"
 
 
 @pytest.mark.parametrize("name, path", list(modules()), ids=[n for n, _ in modules()])
