@@ -94,7 +94,7 @@ def figure1_family(meshes: Path, out: Path) -> str:
     """FIGURE 1: a family of shapes, λ = 0 … −240 in steps of −5, from one
     multi-shift solve, coloured blue (λ=0) → red (λ=−240); an evenly spaced
     subset of the members is drawn in a strip."""
-    from shapeflow.cli.images import family_image
+    from shapeflow.commands.images import family_image
     from shapeflow.flow import family_meshes
 
     spot = load(meshes, "spot_quad")

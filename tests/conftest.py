@@ -1,4 +1,5 @@
-"""Shared test fixtures: the test data in tests/data, optional dependencies, a temporary folder per test.
+"""Shared test fixtures and helpers: the test data in tests/data, Spot, ``run_cli``, optional dependencies, a
+temporary folder per test.
 
 The meshes and Blender reference outputs the tests read are in the repository (tests/data,
 provenance and licences in tests/data/SOURCES.md), so a fresh clone runs every test that needs
@@ -51,6 +52,27 @@ def load_fixture_case(case: str) -> dict:
     out["params"] = json.loads(str(out["params"]))
     out["mesh"] = str(out["mesh"])
     return out
+
+
+# --------------------------------------------------------------------------
+# shared fixtures and helpers
+# --------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def spot():
+    """The bundled Spot (``example:spot``), loaded once per test module (a Mesh does not change)."""
+    import shapeflow as sf
+
+    return sf.load_example("spot")
+
+
+def run_cli(args, capsys) -> tuple[int, str, str]:
+    """``shapeflow ARGS`` run in this process: (exit code, stdout, stderr)."""
+    from shapeflow.cli import main
+
+    code = main([str(a) for a in args])
+    cap = capsys.readouterr()
+    return code, cap.out, cap.err
 
 
 # --------------------------------------------------------------------------

@@ -2,8 +2,12 @@
 
 * layers: a module imports only from its own layer or lower ones (module-level and
   function-level imports alike), with the exceptions listed in ``UPWARD`` and their reasons;
+  the pairs in ``NEVER`` never import each other's way even within a layer; the parts of the
+  package import each other in no circle (the listed exceptions aside);
+* the map: docs/architecture.md names every module of the package;
 * size: no module over ``MODULE_LINES`` lines, no function body over ``FUNCTION_LINES``
-  lines unless its ``def`` line carries a ``# long: <reason>`` comment;
+  lines unless its ``def`` line carries a ``# long: <reason>`` comment, no test file over
+  ``TEST_FILE_LINES`` lines;
 * privacy: no leading-underscore name of a shapeflow module is imported or used as an
   attribute of a module outside it (source and tests).
 """
@@ -27,15 +31,23 @@ LAYERS = {
     "linalg": 4,
     "flow": 5, "sculpt": 5, "subdivision": 5,
     "io": 6, "rendering": 6, "examples": 6, "interop": 6,
-    "cli": 7, "blender": 7, "batch": 7, "studio": 7, "__init__": 7, "__main__": 7,
+    "commands": 7, "blender": 7, "studio": 7, "__init__": 7,
+    "cli": 8, "batch": 8, "__main__": 8,
 }
 #: allowed imports against the layering: (importer, imported) -> reason
 UPWARD = {
     ("mesh.core", "geometry.measures"): "Mesh.diagnostics() counts zero-area faces with the polygon vector area",
-    ("mesh.core", "interop"): "Mesh.to_trimesh() and friends are conveniences for shapeflow.interop",
+    ("mesh.convert", "geometry.measures"): "trimesh and open3d hold triangles: the conversions split faces into fans",
+}
+#: imports that never happen, although the layers would allow them: (importer, imported) -> reason
+NEVER = {
+    ("batch", "cli"): "batch runs the commands' functions on their options; the command line is another of "
+                      "their users, not a library",
 }
 MODULE_LINES = 600
 FUNCTION_LINES = 80
+TEST_FILE_LINES = 800
+ARCHITECTURE = ROOT / "docs" / "architecture.md"
 
 
 def modules():
@@ -99,10 +111,92 @@ def test_the_listed_exceptions_exist():
         assert any(n == a and t.startswith(b) for n, t in made), (a, b)
 
 
+def test_the_never_pairs_hold():
+    bad = [f"{path.relative_to(ROOT)}:{line} imports {target} ({NEVER[(a, b)]})"
+           for name, path in modules() for target, line, _ in imported_modules(name, path)
+           for a, b in NEVER if name.split(".")[0] == a and target.split(".")[0] == b]
+    assert not bad, "\n".join(bad)
+
+
+def part_graph() -> dict[str, dict[str, list[str]]]:
+    """Which top-level part (subpackage or module) imports which, with the imports that tie them
+    (``{importer: {imported: ["module -> target", ...]}}``); the listed upward exceptions left out."""
+    graph: dict[str, dict[str, list[str]]] = {}
+    for name, path in modules():
+        for target, _, _ in imported_modules(name, path):
+            a, b = name.split(".")[0], target.split(".")[0]
+            if a == b or layer(target) is None or any(name == x and target.startswith(y) for x, y in UPWARD):
+                continue
+            graph.setdefault(a, {}).setdefault(b, []).append(f"{name} -> {target}")
+    return graph
+
+
+def circles(graph: dict[str, dict]) -> list[list[str]]:
+    """The strongly connected parts of ``graph`` with more than one member (Tarjan)."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph.get(v, {}):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while comp[-1:] != [v]:
+                comp.append(stack.pop())
+            if len(comp) > 1:
+                found.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_circles_are_found():
+    assert circles({"a": {"b": []}, "b": {"c": []}, "c": {"a": []}, "d": {"a": []}}) == [["a", "b", "c"]]
+    assert circles({"a": {"b": []}, "b": {}}) == []
+
+
+def test_no_circle_among_the_parts():
+    graph = part_graph()
+    assert "batch" in graph and "cli" in graph["__main__"]        # the graph is read at all
+    bad = [f"{' <-> '.join(c)}: " + "; ".join(t for a in c for b in c for t in graph.get(a, {}).get(b, [])[:2])
+           for c in circles(graph)]
+    assert not bad, "\n".join(bad)
+
+
+def test_every_module_is_on_the_map():
+    """docs/architecture.md names every module by its path in the package (a package's
+    ``__init__.py`` may be named by its folder, ``accel/``)."""
+    text = ARCHITECTURE.read_text()
+    missing = []
+    for p in sorted(SRC.rglob("*.py")):
+        rel = p.relative_to(SRC).as_posix()
+        folder = rel[:-len("__init__.py")] if p.name == "__init__.py" else ""
+        if f"`{rel}`" not in text and not (folder and f"`{folder}`" in text):
+            missing.append(rel)
+    assert not missing, f"docs/architecture.md does not name: {', '.join(missing)}"
+
+
 @pytest.mark.parametrize("name, path", list(modules()), ids=[n for n, _ in modules()])
 def test_module_size(name, path):
     lines = len(path.read_text().splitlines())
     assert lines <= MODULE_LINES, f"{path.relative_to(ROOT)} has {lines} lines"
+
+
+def test_no_test_file_is_too_long():
+    sizes = {p.relative_to(ROOT).as_posix(): len(p.read_text().splitlines()) for p in (ROOT / "tests").rglob("*.py")}
+    assert len(sizes) > 50                                  # the tests are read at all
+    long = {name: n for name, n in sorted(sizes.items()) if n > TEST_FILE_LINES}
+    assert not long, long
 
 
 def _body_lines(fn) -> int:

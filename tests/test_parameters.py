@@ -16,11 +16,6 @@ from shapeflow import params
 from shapeflow.errors import ParameterError
 
 
-@pytest.fixture(scope="module")
-def spot():
-    return sf.load_example("spot")
-
-
 @pytest.mark.parametrize("compat", [None, "blender"])
 @pytest.mark.parametrize("solver", ["auto", "cg", "lu"])
 @pytest.mark.parametrize("lam", [1e12, -1e12, 1e10])

@@ -73,7 +73,7 @@ def test_dataset_done_failed_and_accounted_for(dataset, cluster, tmp_path):
         rel = src.relative_to(root)
         assert Path(r["output"]) == out / rel
         assert (out / rel).read_bytes() == reference(src, ref / src.name), src
-        assert r["vertices"] > 0 and r["faces"] > 0 and r["peak_rss"] > 0 and r["seconds"] > 0
+        assert r["vertices"] > 0 and r["faces"] > 0 and r["peak_rss"] > 0 and r["seconds"] >= 0.0
         assert r["report"]["lam"] == -20.0 and r["report"]["solver"] != "none"
         assert r["params"] == rep.records[0]["params"] and r["input_stamp"][0] == src.stat().st_size
     for src, word in bad.items():

@@ -89,6 +89,26 @@ def test_operations_are_checked_before_any_work():
             parse_operation(bad)
 
 
+def test_operations_are_parsed_once_into_options_that_travel():
+    """Each step becomes its options object once, values checked before any file; the operation pickles
+    (a Dask worker receives it) with its options, a family's list of λ included."""
+    import pickle
+
+    from shapeflow.commands import FamilyOptions, FlowOptions
+
+    op = parse_operation("smooth -s 2 --iterations 3 --then family --lambdas 0,-5", fmt="obj")
+    flow, fam = op.options
+    assert isinstance(flow, FlowOptions) and (flow.command, flow.strength, flow.iterations) == ("smooth", 2.0, 3)
+    assert isinstance(fam, FamilyOptions) and fam.lams == (0.0, -5.0) and fam.force and fam.format == "obj"
+    assert pickle.loads(pickle.dumps(op)) == op
+    for bad, message in [("enhance -s inf", "the operation (enhance -s inf): --strength must be finite, got inf"),
+                         ("smooth -s 1 --then subdivide -l -1",
+                          "step 2 of the operation (subdivide -l -1): --levels must be >= 0; got -1")]:
+        with pytest.raises(ParameterError) as info:
+            parse_operation(bad)
+        assert str(info.value) == message
+
+
 def test_sizes_and_estimates(tmp_path):
     assert parse_size("4G") == 4 * 2**30 and parse_size("512MiB") == 512 * 2**20 and parse_size("1000") == 1000
     assert parse_size("1.5k") == 1536
@@ -101,10 +121,12 @@ def test_sizes_and_estimates(tmp_path):
         assert header_vertices(str(tmp_path / f"m{ext}")) == m.n_vertices
     sf.save(tmp_path / "m.stl", m)
     assert header_vertices(str(tmp_path / "m.stl")) == 3 * sf.load(tmp_path / "m.stl").n_faces
-    one = estimate_peak_bytes(1000, (("smooth", "-s", "1"),))
-    assert estimate_peak_bytes(1000, (("subdivide", "--levels", "2"),)) >= 4 * estimate_peak_bytes(
-        1000, (("subdivide", "-l1"),)) > one
-    assert estimate_peak_bytes(1000, (("family", "--lambdas", "0,1,2,3"),)) > one
+    def estimate(n, operation):
+        return estimate_peak_bytes(n, parse_operation(operation).options)
+
+    one = estimate(1000, "smooth -s 1")
+    assert estimate(1000, "subdivide --levels 2") >= 4 * estimate(1000, "subdivide -l1") > one
+    assert estimate(1000, "family --lambdas 0,1,2,3") > one
 
 
 def test_process_file_in_a_plain_pool(tree, tmp_path):

@@ -55,15 +55,17 @@ def test_family_help_describes_its_picture(capsys):
 
 def test_no_compile_notice_when_the_kernels_are_off(capsys):
     from shapeflow import accel
-    from shapeflow.cli.common import note_compiling
+    from shapeflow.commands import Collector
+    from shapeflow.commands.common import note_compiling
 
+    said = Collector()
     with accel.use(kernels="off"):
-        assert note_compiling(("sculpt",), 10**6) is False
-    assert capsys.readouterr().err == ""
+        assert note_compiling(said, ("sculpt",), 10**6) is False
+    assert said.messages == [] and capsys.readouterr().err == ""
 
 
 def test_the_up_axis_follows_the_file_convention():
-    from shapeflow.cli.images import up_axis
+    from shapeflow.commands.images import up_axis
 
     tri = sf.Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]], [[0, 1, 2]])
     stl = tri.with_metadata(stl={"name": "part"})

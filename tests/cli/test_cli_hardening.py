@@ -6,14 +6,7 @@ import subprocess
 import sys
 
 import pytest
-
-
-def run_cli(args, capsys):
-    from shapeflow.cli import main
-
-    code = main([str(a) for a in args])
-    cap = capsys.readouterr()
-    return code, cap.out, cap.err
+from conftest import run_cli
 
 
 @pytest.mark.parametrize("args,match", [

@@ -131,7 +131,7 @@ def test_a_stroke_that_moves_something_does_not_warn(tmp_path, capsys):
 
 
 def test_the_brush_warm_up_runs():
-    from shapeflow.cli.brush import warm_up_brush
+    from shapeflow.commands.brush import warm_up_brush
 
     assert warm_up_brush() >= 0.0
 
@@ -139,10 +139,10 @@ def test_the_brush_warm_up_runs():
 # --- family --to ------------------------------------------------------------------------------
 
 def _lams(**kw):
-    from shapeflow.cli.family import lams_from_args
+    from shapeflow.commands.family import member_lambdas
 
     base = dict(lambdas=None, lam_from=None, lam_to=None, lam_step=None)
-    return lams_from_args(SimpleNamespace(**{**base, **kw}))
+    return member_lambdas(SimpleNamespace(**{**base, **kw}))
 
 
 def test_family_to_includes_its_end_on_the_grid():

@@ -7,7 +7,8 @@ from meshgen import grid, icosphere
 
 import shapeflow as sf
 from shapeflow import cli
-from shapeflow.cli import common
+from shapeflow.commands import common
+from shapeflow.geometry.weld import may_need_weld
 
 
 def test_stage_notes_for_big_files(tmp_path, capsys, monkeypatch):
@@ -23,10 +24,10 @@ def test_stage_notes_for_big_files(tmp_path, capsys, monkeypatch):
 
 def test_closed_meshes_skip_the_weld_and_keep_their_result(tmp_path):
     closed, opened = icosphere(2), grid(6)
-    assert not common.may_need_weld(closed) and common.may_need_weld(opened)
+    assert not may_need_weld(closed) and may_need_weld(opened)
     soup = tmp_path / "soup.stl"
     sf.save(soup, closed)
-    assert common.may_need_weld(sf.load(soup))            # a triangle soup: every edge on a boundary
+    assert may_need_weld(sf.load(soup))            # a triangle soup: every edge on a boundary
     src = tmp_path / "closed.ply"
     sf.save(src, closed)
     assert cli.main(["enhance", str(src), str(tmp_path / "out.ply"), "-s", "10", "-q"]) == 0

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import shapeflow as sf
-from shapeflow.cli.brush import read_stroke
+from shapeflow.commands.brush import read_stroke
 from shapeflow.errors import ParameterError
 
 GOOD = {"lambda": -20, "radius": 0.2, "points": [[0, 0, 0], [0.5, 0, 0]]}
@@ -44,7 +44,7 @@ def test_bad_stroke_files_are_one_parameter_error(tmp_path, content, match):
 
 
 def test_stroke_file_size_is_bounded(tmp_path, monkeypatch):
-    import shapeflow.cli.brush as cb
+    import shapeflow.commands.brush as cb
 
     monkeypatch.setattr(cb, "MAX_STROKE_BYTES", 100)
     with pytest.raises(ParameterError, match="at most 100"):

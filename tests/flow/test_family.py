@@ -407,7 +407,7 @@ def test_cli_lambdas_options_and_errors(tmp_path, capsys):
 
 
 def test_member_names_sort_in_family_order():
-    from shapeflow.cli.family import member_names
+    from shapeflow.commands.family import member_names
 
     lams = [float(x) for x in np.arange(0.0, -240.0, -5.0)]
     names = member_names("spot", lams, "ply")

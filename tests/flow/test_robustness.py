@@ -8,7 +8,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import MESHES, requires_shared
+from conftest import MESHES, requires_shared, run_cli
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 from meshgen import grid, icosphere, random_rotation
@@ -265,14 +265,6 @@ def _write_weights(tmp_path, values):
 # ----------------------------------------------------------------------------
 # the command line: one line, exit 2, nothing lost
 # ----------------------------------------------------------------------------
-
-def run_cli(args, capsys):
-    from shapeflow.cli import main
-
-    code = main(args)
-    cap = capsys.readouterr()
-    return code, cap.out, cap.err
-
 
 def test_cli_refuses_to_overwrite_input_and_leaves_no_partial_file(tmp_path, capsys):
     src = tmp_path / "in.obj"

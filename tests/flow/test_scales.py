@@ -16,11 +16,6 @@ from shapeflow.errors import ParameterError
 
 
 @pytest.fixture(scope="module")
-def spot():
-    return sf.load_example("spot")
-
-
-@pytest.fixture(scope="module")
 def open_mesh():
     from meshgen import grid
 

@@ -10,6 +10,7 @@ import sys
 import textwrap
 
 import pytest
+from conftest import run_cli
 
 import shapeflow as sf
 from shapeflow import io as sio
@@ -19,14 +20,6 @@ from shapeflow.io import atomic
 
 def tri():
     return sf.Mesh([[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]])
-
-
-def run_cli(args, capsys):
-    from shapeflow.cli import main
-
-    code = main([str(a) for a in args])
-    cap = capsys.readouterr()
-    return code, cap.err
 
 
 # --- symbolic links -------------------------------------------------------------------------
@@ -51,7 +44,7 @@ def test_cli_through_a_symlink(tmp_path, capsys):
     sio.save(target, tri())
     link = tmp_path / "l.ply"
     link.symlink_to(target.name)          # a relative link
-    code, err = run_cli(["smooth", "example:spot", link, "--strength", "1", "-q"], capsys)
+    code, _, err = run_cli(["smooth", "example:spot", link, "--strength", "1", "-q"], capsys)
     assert code == 0, err
     assert link.is_symlink() and sio.load(target).n_vertices == sf.load_example("spot").n_vertices
 
@@ -65,9 +58,9 @@ def test_read_only_file_needs_force(tmp_path, capsys):
     before = out.read_bytes()
     with pytest.raises(OutputError, match=r"ro\.obj: is read-only; pass --force"):
         sio.save(out, sf.load_example("spot"))
-    code, err = run_cli(["smooth", "example:spot", out, "--strength", "1"], capsys)
+    code, _, err = run_cli(["smooth", "example:spot", out, "--strength", "1"], capsys)
     assert code == 2 and "read-only" in err and out.read_bytes() == before
-    code, err = run_cli(["smooth", "example:spot", out, "--strength", "1", "--force", "-q"], capsys)
+    code, _, err = run_cli(["smooth", "example:spot", out, "--strength", "1", "--force", "-q"], capsys)
     assert code == 0 and out.read_bytes() != before
     assert os.stat(out).st_mode & 0o777 == 0o444          # the file keeps its mode
 
@@ -78,7 +71,7 @@ def test_bundled_examples_are_never_written(capsys, name):
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
     for args in (["smooth", f"example:{name}", path, "--strength", "1", "--force"],
                  ["subdivide", f"example:{name}", path, "--force"]):
-        code, err = run_cli(args, capsys)
+        code, _, err = run_cli(args, capsys)
         assert code == 2 and "bundled example data" in err and len(err.strip().splitlines()) == 1
     with pytest.raises(OutputError, match="never written"):
         sio.save(path, tri(), force=True)
@@ -112,7 +105,7 @@ def no_work(monkeypatch):
     (["family", "example:spot", "{tmp}/a/b", "--to=-10", "--step=-5"], "does not exist"),
 ])
 def test_outputs_checked_before_work(tmp_path, capsys, no_work, args, match):
-    code, err = run_cli([a.format(tmp=tmp_path) for a in args], capsys)
+    code, _, err = run_cli([a.format(tmp=tmp_path) for a in args], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert match.format(tmp=tmp_path) in err
     assert ".tmp" not in err

@@ -15,11 +15,6 @@ from shapeflow.errors import DataLossWarning
 stl_mesh = need("stl.mesh", "numpy-stl (a test dependency)")
 
 
-@pytest.fixture
-def spot():
-    return sf.load_example("spot")
-
-
 def fan_triangles(mesh):
     """Each face as a fan from its first corner, written out here independently."""
     out = []

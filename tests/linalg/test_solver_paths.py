@@ -21,11 +21,6 @@ PATHS = ["auto", "cg", "chebyshev", "lu"] + (["cholesky"] if solvers.cholesky_av
 
 
 @pytest.fixture(scope="module")
-def spot():
-    return sf.load_example("spot")
-
-
-@pytest.fixture(scope="module")
 def dense_L(spot):
     W, _ = sf.cotan_weights(spot)
     W = W.toarray()

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import os
 import re
+from typing import Sequence
 
 __all__ = ["header_vertices", "estimate_peak_bytes"]
 
@@ -50,54 +51,22 @@ def header_vertices(path: str) -> int:
     return max(1, size // TEXT_BYTES_PER_VERTEX)
 
 
-def estimate_peak_bytes(n_vertices: int, steps: tuple[tuple[str, ...], ...]) -> int:
-    """Peak memory above the interpreter of running ``steps`` on a mesh of ``n_vertices``."""
+def estimate_peak_bytes(n_vertices: int, options: Sequence) -> int:
+    """Peak memory above the interpreter of running the steps whose options are ``options``
+    (:attr:`Operation.options <shapeflow.batch.operation.Operation>`) on a mesh of ``n_vertices``."""
+    from ..commands import BrushOptions, CurvatureOptions, FamilyOptions, FlowOptions, SubdivideOptions
+
     n = float(n_vertices)
     peak = LOAD * n
-    for cmd, *opts in steps:
-        if cmd == "subdivide":
-            levels = _int_option(opts, ("--levels", "-l"), 1)
-            for _ in range(max(levels, 0)):
+    for o in options:
+        if isinstance(o, SubdivideOptions):
+            for _ in range(o.levels):
                 peak = max(peak, SUBDIVIDE * n)
                 n *= GROWTH
-        elif cmd == "family":
-            peak = max(peak, (FLOW + FAMILY_MEMBER * _members(opts)) * n)
-        elif cmd in ("flow", "enhance", "smooth", "brush", "curvature"):
+        elif isinstance(o, FamilyOptions):
+            peak = max(peak, (FLOW + FAMILY_MEMBER * len(o.lams)) * n)
+        elif isinstance(o, (FlowOptions, BrushOptions, CurvatureOptions)):
             peak = max(peak, FLOW * n)
         else:
             peak = max(peak, LOAD * n)
     return int(peak)
-
-
-def _int_option(opts, names, default: int) -> int:
-    for i, o in enumerate(opts):
-        for name in names:
-            if o == name and i + 1 < len(opts):
-                return _as_int(opts[i + 1], default)
-            if o.startswith(name + "=") or (len(name) == 2 and o.startswith(name) and len(o) > 2):
-                return _as_int(o[len(name):].lstrip("="), default)
-    return default
-
-
-def _as_int(text: str, default: int) -> int:
-    try:
-        return int(text)
-    except ValueError:
-        return default
-
-
-def _members(opts) -> int:
-    """Members of a family from --lambdas or --from/--to/--step (a bound: 100 when unknown)."""
-    for i, o in enumerate(opts):
-        if o == "--lambdas" and i + 1 < len(opts):
-            return len(opts[i + 1].split(","))
-    vals = {}
-    for name in ("--from", "--to", "--step"):
-        if name in opts and opts.index(name) + 1 < len(opts):
-            try:
-                vals[name] = float(opts[opts.index(name) + 1])
-            except ValueError:
-                pass
-    if "--to" in vals and vals.get("--step"):
-        return max(1, int(abs((vals["--to"] - vals.get("--from", 0.0)) / vals["--step"])) + 1)
-    return 100

@@ -3,9 +3,10 @@
 An operation is what follows ``shapeflow batch INPUTS OUTDIR``: a command of the
 single-file CLI with its options, without its input and output (``enhance
 --strength 50``), or a pipeline of them joined by ``--then`` (``smooth -s 2
---then subdivide --levels 1``).  Each step runs exactly as ``shapeflow COMMAND
-... IN OUT`` would (the same parser, the same code), so a batch's output equals
-the single-file command's.
+--then subdivide --levels 1``).  Each step is parsed once per run into its options
+(:mod:`shapeflow.commands`, the grammar and the options the command line uses) and runs
+the command's own function on every file, so a batch's output equals the single-file
+command's.
 """
 
 from __future__ import annotations
@@ -32,9 +33,11 @@ THEN = "--then"
 
 @dataclass(frozen=True)
 class Operation:
-    """The checked steps of a batch operation, each ``(command, *options)``."""
+    """The checked steps of a batch operation: each as typed, ``(command, *options)``, and its
+    options object (:mod:`shapeflow.commands`); made by :func:`parse_operation`."""
 
     steps: tuple[tuple[str, ...], ...]
+    options: tuple = ()
 
     @property
     def text(self) -> str:
@@ -59,21 +62,6 @@ class Operation:
         blob = json.dumps({"steps": self.steps, "format": fmt}, sort_keys=True).encode()
         return hashlib.sha256(blob).hexdigest()[:16]
 
-    def argv(self, i: int, source: str, output: str, fmt: str | None) -> list[str]:
-        """The command line of step ``i`` on ``source`` writing ``output``."""
-        cmd, *opts = self.steps[i]
-        extra = []
-        if cmd == "family":
-            extra.append("--force")       # members of an interrupted earlier run are redone
-            if fmt and "--format" not in opts:
-                extra += ["--format", fmt.lstrip(".").lower()]
-        return [cmd, *opts, *extra, _positional(source), _positional(output)]
-
-
-def _positional(path: str) -> str:
-    """A path as a positional argument: one starting with '-' would be read as an option."""
-    return os.path.join(os.curdir, path) if path.startswith("-") else path
-
 
 def _split(tokens: list[str]) -> list[list[str]]:
     steps, cur = [], []
@@ -90,9 +78,9 @@ def _split(tokens: list[str]) -> list[list[str]]:
 def parse_operation(operation: str | Sequence[str] | Operation, *, fmt: str | None = None) -> Operation:
     """Check an operation (a string, an argv list, or an :class:`Operation`) before any work.
 
-    Every step is parsed by the single-file CLI's own parser, so an unknown option or a bad
-    value is reported now, naming the step; options that write a side file per run
-    (``--image``, ``--weights-out``) are refused.
+    Every step is parsed with the commands' own grammar into its options object, whose values are
+    checked as it is made, so an unknown option or a bad value is reported now, naming the step;
+    options that write a side file per run (``--image``, ``--weights-out``) are refused.
     """
     if isinstance(operation, Operation):
         steps = [list(s) for s in operation.steps]
@@ -106,9 +94,10 @@ def parse_operation(operation: str | Sequence[str] | Operation, *, fmt: str | No
     if not steps or not steps[0]:
         raise ParameterError(f"no OPERATION given; one of: {', '.join(STEP_COMMANDS)} with its options "
                              f"(several joined by {THEN})")
-    from ..cli import build_parser
+    from ..commands import operations_parser, options_from
 
-    parser = build_parser(raising=True)
+    parser = operations_parser()
+    options = []
     for i, step in enumerate(steps):
         where = f"step {i + 1} of the operation" if len(steps) > 1 else "the operation"
         if not step:
@@ -118,9 +107,8 @@ def parse_operation(operation: str | Sequence[str] | Operation, *, fmt: str | No
                                  f"use one of {', '.join(STEP_COMMANDS)}")
         if step[0] in LAST_ONLY and i < len(steps) - 1:
             raise ParameterError(f"{where}: {step[0]} writes no mesh for a next step; put it last")
-        out = "out" if step[0] == "family" else "out" + (f".{fmt.lstrip('.')}" if fmt else ".ply")
         try:
-            args = parser.parse_args(Operation((tuple(step),)).argv(0, "in.ply", out, fmt))
+            args = parser.parse_args(_step_argv(step, fmt))
         except ParameterError as exc:
             msg = str(exc).split(": ", 1)[-1]
             raise ParameterError(f"{where} ({shlex.join(step)}): {msg} (options of the batch itself, such as "
@@ -129,18 +117,33 @@ def parse_operation(operation: str | Sequence[str] | Operation, *, fmt: str | No
             if getattr(args, attr, None):
                 raise ParameterError(f"{where}: {flag} writes one more file per run; a batch writes one "
                                      "output per file (render the outputs in a second batch)")
-    return Operation(tuple(tuple(s) for s in steps))
+        try:
+            options.append(options_from(args))
+        except ParameterError as exc:
+            raise ParameterError(f"{where} ({shlex.join(step)}): {exc}") from None
+    return Operation(tuple(tuple(s) for s in steps), tuple(options))
 
 
-def run_steps(op: Operation, source: str, output: str, workdir: str, fmt: str | None) -> None:
-    """Run every step on ``source``; intermediate meshes go to ``workdir`` (input's format)."""
-    from ..cli import build_parser
+def _step_argv(step: list[str], fmt: str | None) -> list[str]:
+    """A step's words as a command line on stand-in paths; a family also redoes the members of an
+    interrupted earlier run (``--force``) and writes the batch's ``--format`` unless it names one."""
+    cmd, *opts = step
+    extra = []
+    if cmd == "family":
+        extra.append("--force")
+        if fmt and "--format" not in opts:
+            extra += ["--format", fmt.lstrip(".").lower()]
+    out = "out" if cmd == "family" else "out" + (f".{fmt.lstrip('.')}" if fmt else ".ply")
+    return [cmd, *opts, *extra, "in.ply", out]
 
-    parser = build_parser(raising=True)
+
+def run_steps(op: Operation, source: str, output: str, workdir: str, report) -> None:
+    """Run every step on ``source``, telling ``report``; intermediate meshes go to ``workdir`` (input's format)."""
+    from ..commands import run
+
     cur = source
     ext = os.path.splitext(source)[1] or ".ply"
-    for i in range(len(op.steps)):
-        out = output if i == len(op.steps) - 1 else os.path.join(workdir, f"step{i + 1}{ext}")
-        args = parser.parse_args(op.argv(i, cur, out, fmt))
-        args.func(args)
+    for i, options in enumerate(op.options):
+        out = output if i == len(op.options) - 1 else os.path.join(workdir, f"step{i + 1}{ext}")
+        run(options, cur, out, report)
         cur = out

@@ -11,15 +11,15 @@ Usable from any runner of Python functions::
         records = pool.starmap(process_file, [("in/a.obj", "out/a.obj", "enhance --strength 50"),
                                               ("in/b.ply", "out/b.ply", "enhance --strength 50")])
 
-Thread model: one file per process at a time (the runners above, Dask workers with one
-thread each).  The commands' warnings are recorded with :func:`warnings.catch_warnings`,
+The commands tell their messages to a :class:`~shapeflow.commands.report.Collector` of the file's
+own.  Thread model: one file per process at a time (the runners above, Dask workers with one
+thread each).  The library's warnings are recorded with :func:`warnings.catch_warnings`,
 which is process-wide, so two calls in threads of one process would mix their warnings.
 """
 
 from __future__ import annotations
 
 import contextlib
-import io
 import json
 import os
 import posixpath
@@ -121,13 +121,6 @@ def _fetch(url: str, directory: str, data: bytes | None = None) -> str:
     return local
 
 
-class _NoTerminal(io.StringIO):
-    """stderr while a file runs: the commands' own progress bars see no terminal and stay off."""
-
-    def isatty(self) -> bool:
-        return False
-
-
 def _error_text(exc: BaseException) -> str:
     if isinstance(exc, (ShapeflowError, OptionalDependencyError)):
         return str(exc)
@@ -179,7 +172,8 @@ def process_file(source: str, output: str, operation: str | list | Operation, *,
         (what the command would have printed, warnings included).  Messages and errors name
         ``source`` and ``output``, never the work folder's files.
     """
-    op = operation if isinstance(operation, Operation) else parse_operation(operation, fmt=format)
+    op = operation if isinstance(operation, Operation) and len(operation.options) == len(operation.steps) \
+        else parse_operation(operation, fmt=format)
     t0 = time.perf_counter()
     rec = failed_record(source, output)
     own = sampler is None
@@ -194,8 +188,8 @@ def process_file(source: str, output: str, operation: str | list | Operation, *,
         work = tempfile.mkdtemp(prefix=WORK_PREFIX, dir=parent)
         if outdir is not None:
             confine(outdir, work, "work folder")
-        with (sampler if own else contextlib.nullcontext()), contextlib.redirect_stderr(_NoTerminal()):
-            _run_one(op, source, output, work, format, max_memory, threads, rec, names, data)
+        with sampler if own else contextlib.nullcontext():
+            _run_one(op, source, output, work, max_memory, threads, rec, names, data)
     except BaseException as exc:   # a file's failure is its record; Ctrl-C and exits still end the run
         rec["error"] = _final_names(_error_text(exc), names, work)
         if not isinstance(exc, Exception):
@@ -215,9 +209,9 @@ def _final_names(text: str, names: dict[str, str], work: str | None) -> str:
     return text.replace(work + os.sep, "") if work else text
 
 
-def _run_one(op: Operation, source: str, output: str, work: str, fmt, max_memory, threads, rec: dict,
+def _run_one(op: Operation, source: str, output: str, work: str, max_memory, threads, rec: dict,
              names: dict[str, str], data: bytes | None) -> None:
-    from ..cli.common import collecting
+    from ..commands import Collector
 
     if "\0" in source:
         raise MeshError(f"{source!r}: a file name cannot hold a NUL character")
@@ -227,7 +221,7 @@ def _run_one(op: Operation, source: str, output: str, work: str, fmt, max_memory
         raise FileNotFoundError(2, "No such file or directory", source)
     if max_memory is not None:
         n = header_vertices(local)
-        est = estimate_peak_bytes(n, op.steps) + _rss()
+        est = estimate_peak_bytes(n, op.options) + _rss()
         if est > max_memory:
             rec["vertices"] = n
             rec["error"] = (f"estimated peak memory {est / 2**30:.2f} GiB ({n} vertices declared or estimated) "
@@ -235,10 +229,11 @@ def _run_one(op: Operation, source: str, output: str, work: str, fmt, max_memory
             return
     final = os.path.join(work, os.path.basename(output.rstrip(os.sep)))
     names[final] = output
-    with collecting() as said, warnings.catch_warnings(record=True) as caught, accel.use(threads=threads):
+    said = Collector()
+    with warnings.catch_warnings(record=True) as caught, accel.use(threads=threads):
         warnings.simplefilter("always")
         try:
-            run_steps(op, local, final, work, fmt)
+            run_steps(op, local, final, work, said)
         finally:
             rec["messages"] = [_final_names(m, names, work) for m in said.messages]
             rec["messages"] += [_final_names(f"warning: {w.message}", names, work) for w in caught]

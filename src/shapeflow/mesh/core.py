@@ -164,25 +164,25 @@ class Mesh:
 
     def to_trimesh(self) -> object:
         """:func:`shapeflow.interop.to_trimesh`."""
-        from ..interop import to_trimesh
+        from .convert import to_trimesh
 
         return to_trimesh(self)
 
     def to_pyvista(self) -> object:
         """:func:`shapeflow.interop.to_pyvista`."""
-        from ..interop import to_pyvista
+        from .convert import to_pyvista
 
         return to_pyvista(self)
 
     def to_meshio(self) -> object:
         """:func:`shapeflow.interop.to_meshio`."""
-        from ..interop import to_meshio
+        from .convert import to_meshio
 
         return to_meshio(self)
 
     def to_open3d(self) -> object:
         """:func:`shapeflow.interop.to_open3d`."""
-        from ..interop import to_open3d
+        from .convert import to_open3d
 
         return to_open3d(self)
 

@@ -1,21 +1,71 @@
-"""``shapeflow render MESH [MESH...] OUT.png``: headless pictures (needs ``shapeflow[render]``)."""
+"""``render MESH [MESH...] OUT.png``: headless pictures (needs ``shapeflow[render]``)."""
 
 from __future__ import annotations
 
+import argparse
 import os
+import time
+from dataclasses import dataclass
+from typing import Sequence
 
 from ..errors import ParameterError
-from .common import eprint, load_mesh_arg
+from .common import load_mesh
+from .images import check_png, parse_size, up_axis
+from .report import Reporter
+
+__all__ = ["RenderOptions", "add_parser", "run"]
 
 
-def register(sub) -> None:
+@dataclass(frozen=True)
+class RenderOptions:
+    """Options of ``render``, named as on the command line (``clim`` is ``--range``).  ``size``,
+    ``grid`` and ``clim`` may be given as the command line writes them (``"800x600"``, ``"2x3"``,
+    ``"-1,1"``) and are held parsed; ``color`` ``displacement:REF`` names the reference mesh."""
+
+    color: str = "curvature"
+    view: str = "front"
+    up: str = "auto"
+    front: str = "auto"
+    edges: bool = False
+    size: tuple[int, int] | str | None = None     #: None: 800x600 for one mesh, 400x400 per panel for several
+    grid: tuple[int, int] | str | None = None     #: "auto": near-square
+    shading: str = "smooth"
+    labels: tuple[str, ...] | None = None
+    no_labels: bool = False
+    cmap: str | None = None
+    clim: tuple[float, float] | str | None = None
+    no_colorbar: bool = False
+    framing: str = "shared"
+    quiet: bool = False
+
+    def __post_init__(self):
+        if isinstance(self.clim, str):
+            object.__setattr__(self, "clim", parse_range(self.clim))
+        if isinstance(self.grid, str) and self.grid != "auto":
+            object.__setattr__(self, "grid", parse_grid(self.grid))
+        if isinstance(self.size, str):
+            object.__setattr__(self, "size", parse_size(self.size) if self.size else None)
+        if self.labels is not None:
+            object.__setattr__(self, "labels", tuple(self.labels))
+        reference_of(self.color)
+
+
+class _MeshesThenPicture(argparse.Action):
+    """``PATH [PATH ...]``: the meshes (``input``), then the picture (``output``)."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        namespace.input, namespace.output = list(values[:-1]), values[-1]
+
+
+def add_parser(sub) -> None:
+    """The grammar of ``render``."""
     p = sub.add_parser(
         "render", help="draw one or more meshes into a PNG (offscreen; needs shapeflow[render])",
         usage="shapeflow render [options] MESH [MESH ...] OUT.png",
         description="Render meshes offscreen into a PNG: smooth or flat shading, a colour field with a "
         "colour bar, optional wireframe (quads drawn as quads). Several meshes are drawn side by side "
         "with one camera and one colour range, so they can be compared.")
-    p.add_argument("paths", nargs="+", metavar="PATH",
+    p.add_argument("paths", nargs="+", metavar="PATH", action=_MeshesThenPicture,
                    help="input meshes (OBJ, PLY, OFF, STL, glTF/GLB, USD, or example:NAME), then the PNG to write")
     p.add_argument("--color", "-c", default="curvature", metavar="FIELD",
                    help="curvature (signed mean curvature; a PLY 'curvature' attribute if present), "
@@ -49,20 +99,10 @@ def register(sub) -> None:
     p.add_argument("--framing", choices=["shared", "rows", "each"], default="shared",
                    help="one camera for all meshes (default), one per grid row, or one per mesh")
     p.add_argument("--quiet", "-q", action="store_true", help="no summary on stderr")
-    p.set_defaults(func=run)
+    p.set_defaults(options=RenderOptions)
 
 
-def parse_size(text: str) -> tuple[int, int]:
-    try:
-        w, h = (int(x) for x in text.lower().replace("×", "x").split("x"))
-    except ValueError:
-        raise ParameterError(f"--size must be WIDTHxHEIGHT, e.g. 800x600; got {text!r}") from None
-    return w, h
-
-
-def parse_grid(text: str | None):
-    if text is None or text == "auto":
-        return text
+def parse_grid(text: str):
     try:
         r, c = (int(x) for x in text.lower().split("x"))
     except ValueError:
@@ -70,9 +110,7 @@ def parse_grid(text: str | None):
     return r, c
 
 
-def parse_range(text: str | None):
-    if text is None:
-        return None
+def parse_range(text: str):
     try:
         lo, hi = (float(x) for x in text.split(","))
     except ValueError:
@@ -80,16 +118,16 @@ def parse_range(text: str | None):
     return lo, hi
 
 
-def color_arg(text: str):
-    """``displacement:REF`` -> ("displacement", reference mesh); anything else is passed on."""
-    if text.startswith("displacement:"):
-        ref = text.split(":", 1)[1]
+def reference_of(color: str) -> str | None:
+    """The reference mesh of ``displacement:REF``, None for any other colour."""
+    if color.startswith("displacement:"):
+        ref = color.split(":", 1)[1]
         if not ref:
             raise ParameterError("--color displacement:REF needs a reference mesh after the colon")
-        return "displacement", load_mesh_arg(ref)
-    if text == "displacement":
+        return ref
+    if color == "displacement":
         raise ParameterError("--color displacement needs a reference: displacement:REF")
-    return text, None
+    return None
 
 
 def mesh_label(arg: str) -> str:
@@ -98,46 +136,31 @@ def mesh_label(arg: str) -> str:
     return os.path.splitext(os.path.basename(arg))[0]
 
 
-def check_png(path: str, option: str = "output") -> str:
-    """A .png path that can be written (its folder exists...), checked before any work."""
-    from ..io import output_target
-
-    if not path.lower().endswith(".png"):
-        raise ParameterError(f"{option} {path!r} must be a .png file")
-    output_target(path)
-    return path
-
-
-def run(args) -> int:
-    import time
-
+def run(o: RenderOptions, source: str | Sequence[str], target: str, report: Reporter) -> None:
+    """Draw the mesh ``source`` (or the meshes, side by side) into the PNG ``target``."""
     from ..rendering import render, render_meshes
 
-    if len(args.paths) < 2:
+    inputs = [source] if isinstance(source, str) else list(source)
+    if not inputs:
         raise ParameterError("give at least one mesh and the PNG to write: shapeflow render MESH OUT.png")
-    inputs, out = args.paths[:-1], check_png(args.paths[-1])
-    color, reference = color_arg(args.color)
-    clim = parse_range(args.clim)
-    grid = parse_grid(args.grid)
+    out = check_png(target)
+    ref = reference_of(o.color)
+    color, reference = ("displacement", load_mesh(ref, report)) if ref is not None else (o.color, None)
     t0 = time.perf_counter()
-    meshes = [load_mesh_arg(a) for a in inputs]
-    if args.labels is not None and len(args.labels) != len(meshes):
-        raise ParameterError(f"--labels: {len(args.labels)} titles for {len(meshes)} meshes")
-    from .images import up_axis
-
-    up = up_axis(args.up, meshes[0])
-    front = None if args.front == "auto" else args.front
-    common = dict(color=color, reference=reference, view=args.view, up=up, front=front, edges=args.edges,
-                  shading=args.shading, colorbar=not args.no_colorbar, cmap=args.cmap, clim=clim)
-    if len(meshes) == 1 and grid is None:
-        size = parse_size(args.size) if args.size else (800, 600)
-        label = None if args.no_labels or not args.labels else args.labels[0]
-        img = render(meshes[0], out, size=size, label=label, **common)
+    meshes = [load_mesh(a, report) for a in inputs]
+    if o.labels is not None and len(o.labels) != len(meshes):
+        raise ParameterError(f"--labels: {len(o.labels)} titles for {len(meshes)} meshes")
+    up = up_axis(o.up, meshes[0])
+    front = None if o.front == "auto" else o.front
+    common = dict(color=color, reference=reference, view=o.view, up=up, front=front, edges=o.edges,
+                  shading=o.shading, colorbar=not o.no_colorbar, cmap=o.cmap, clim=o.clim)
+    if len(meshes) == 1 and o.grid is None:
+        label = None if o.no_labels or not o.labels else o.labels[0]
+        img = render(meshes[0], out, size=o.size or (800, 600), label=label, **common)
     else:
-        size = parse_size(args.size) if args.size else (400, 400)
-        labels = None if args.no_labels else (args.labels or [mesh_label(a) for a in inputs])
-        img = render_meshes(meshes, out, grid=grid, size=size, labels=labels, framing=args.framing, **common)
-    if not args.quiet:
-        eprint(f"shapeflow render: {len(meshes)} mesh(es), {img.shape[1]}x{img.shape[0]} pixels "
-               f"in {time.perf_counter() - t0:.2f} s -> {out}")
-    return 0
+        labels = None if o.no_labels else (list(o.labels) if o.labels else [mesh_label(a) for a in inputs])
+        img = render_meshes(meshes, out, grid=o.grid, size=o.size or (400, 400), labels=labels, framing=o.framing,
+                            **common)
+    if not o.quiet:
+        report.message(f"shapeflow render: {len(meshes)} mesh(es), {img.shape[1]}x{img.shape[0]} pixels "
+                       f"in {time.perf_counter() - t0:.2f} s -> {out}")

@@ -1,4 +1,4 @@
-"""``shapeflow brush IN OUT --stroke stroke.json``: sculpt a mesh along a brush stroke.
+"""``brush IN OUT --stroke stroke.json``: sculpt a mesh along a brush stroke.
 
 The stroke file is JSON::
 
@@ -17,26 +17,40 @@ from __future__ import annotations
 import json
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import ParameterError
-from ..mesh import Mesh
-from .common import (
-    eprint,
-    load_mesh_arg,
-    note_compiling,
-    progress_callback,
-    resolve_output,
-    save_mesh,
-    welded_for_operator,
-)
+from .common import load_mesh, note_compiling, progress, resolve_output, save_mesh, welded_for_operator
 from .images import add_image_options
+from .report import Reporter
+
+__all__ = ["BrushOptions", "STROKE_KEYS", "MAX_STROKE_BYTES", "read_stroke", "add_parser", "run", "warm_up_brush"]
 
 STROKE_KEYS = {"lambda", "radius", "points", "spacing", "falloff", "lambda_border", "brush", "strength"}
+#: the largest stroke file read (a point is ~30 bytes of JSON: ~2 million points)
+MAX_STROKE_BYTES = 64 << 20
 
 
-def register(sub) -> None:
+@dataclass(frozen=True)
+class BrushOptions:
+    """Options of ``brush``, named as on the command line; ``stroke`` is the stroke file (read when
+    the brush runs)."""
+
+    stroke: str = ""
+    weights: str | None = None          #: a .npy/.txt file, or the name of a vertex attribute of the input
+    area_normalized: bool = False
+    scheme: str = "tqlbo"
+    force: bool = False
+    quiet: bool = False
+    strict: bool = False                #: a stroke that moves no vertex is an error, not a warning
+    image: str | None = None
+    image_up: str = "auto"
+
+
+def add_parser(sub) -> None:
+    """The grammar of ``brush``."""
     p = sub.add_parser(
         "brush",
         help="sculpt along a stroke with the shape-enhancement brush (or inflate)",
@@ -60,7 +74,7 @@ def register(sub) -> None:
     p.add_argument("--strict", action="store_true",
                    help="a stroke that moves no vertex is an error (exit 2, nothing written) instead of a warning")
     add_image_options(p)
-    p.set_defaults(func=run)
+    p.set_defaults(options=BrushOptions)
 
 
 def _number(d: dict, key: str, where: str, *, required: bool = False, default=None, positive: bool = False):
@@ -76,15 +90,12 @@ def _number(d: dict, key: str, where: str, *, required: bool = False, default=No
     return float(v)
 
 
-#: the largest stroke file read (a point is ~30 bytes of JSON: ~2 million points)
-MAX_STROKE_BYTES = 64 << 20
 def _json_int(s: str):
     # JSON integers of any length: as floats (a 5,000-digit one becomes inf and is refused as not finite)
     return float(s)
 
 
-def read_stroke(path: str) -> dict:
-    """Read and check a stroke file; every problem is one ParameterError line."""
+def _stroke_text(path: str) -> str:
     import os
 
     try:
@@ -92,9 +103,14 @@ def read_stroke(path: str) -> dict:
         if size > MAX_STROKE_BYTES:
             raise ParameterError(f"stroke file '{path}' has {size:,} bytes; at most {MAX_STROKE_BYTES:,}")
         with open(path, "rb") as f:
-            text = f.read().decode("utf-8-sig")
+            return f.read().decode("utf-8-sig")
     except UnicodeDecodeError:
         raise ParameterError(f"stroke file '{path}' is not UTF-8 text") from None
+
+
+def read_stroke(path: str) -> dict:
+    """Read and check a stroke file; every problem is one ParameterError line."""
+    text = _stroke_text(path)
     try:
         d = json.loads(text, parse_int=_json_int, parse_float=float)
     except json.JSONDecodeError as exc:
@@ -132,7 +148,11 @@ def read_stroke(path: str) -> dict:
     if fo not in (None, "smooth", "none", "constant"):
         raise ParameterError(f"{where}: \"falloff\" must be null or \"smooth\", got {json.dumps(fo)}")
     out["falloff"] = fo
-    pts = d.get("points")
+    out["points"] = _points(d.get("points"), where)
+    return out
+
+
+def _points(pts, where: str) -> list:
     if pts is None:
         raise ParameterError(f"{where}: missing \"points\" (a list of [x, y, z])")
     if not isinstance(pts, list) or not pts:
@@ -141,62 +161,66 @@ def read_stroke(path: str) -> dict:
         if (not isinstance(q, list) or len(q) != 3
                 or any(isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x) for x in q)):
             raise ParameterError(f"{where}: point {i} must be [x, y, z] with three finite numbers, got {json.dumps(q)}")
-    out["points"] = [[float(x) for x in q] for q in pts]
-    return out
+    return [[float(x) for x in q] for q in pts]
 
 
-def run(args) -> int:
+def _make_brush(o: BrushOptions, operand, stroke: dict, weights):
     from ..sculpt import Brush, InflateBrush
+
+    if stroke["brush"] == "enhance":
+        return Brush(operand, lam=stroke["lambda"], radius=stroke["radius"], falloff=stroke["falloff"],
+                     lam_border=stroke["lambda_border"], weights=weights, scheme=o.scheme,
+                     normalized=not o.area_normalized, undo_limit=0)
+    return InflateBrush(operand, strength=stroke["strength"], radius=stroke["radius"], falloff=stroke["falloff"],
+                        weights=weights, undo_limit=0)
+
+
+def run(o: BrushOptions, source: str, target: str, report: Reporter) -> None:
+    """Sculpt ``source`` along the stroke of ``o.stroke`` and write ``target`` (and ``o.image``)."""
     from .flow import weights_arg
 
-    stroke = read_stroke(args.stroke)
-    out_path = resolve_output(args.input, args.output, args.force, args.image)
-    if args.image:
+    stroke = read_stroke(o.stroke)
+    out_path = resolve_output(source, target, o.force, o.image)
+    if o.image:
         from .images import check_picture_path
 
-        check_picture_path(args.image)
-    mesh = load_mesh_arg(args.input)
-    operand, kw, restore = welded_for_operator(mesh, {"weights": weights_arg(args.weights, mesh)}, "brush",
-                                               args.quiet)
+        check_picture_path(o.image)
+    mesh = load_mesh(source, report)
+    operand, kw, restore = welded_for_operator(mesh, {"weights": weights_arg(o.weights, mesh)}, "brush", o.quiet,
+                                               report)
     weights = kw["weights"]
     t_compile = 0.0
-    if note_compiling(("sculpt", "linalg", "mesh", "operators"), operand.n_vertices, min_size=0, quiet=args.quiet):
+    if note_compiling(report, ("sculpt", "linalg", "mesh", "operators"), operand.n_vertices, min_size=0,
+                      quiet=o.quiet):
         t_compile = warm_up_brush()     # compiled now, so the dab timings below are the dabs'
     t0 = time.perf_counter()
-    if stroke["brush"] == "enhance":
-        brush = Brush(operand, lam=stroke["lambda"], radius=stroke["radius"], falloff=stroke["falloff"],
-                      lam_border=stroke["lambda_border"], weights=weights, scheme=args.scheme,
-                      normalized=not args.area_normalized, undo_limit=0)
-    else:
-        brush = InflateBrush(operand, strength=stroke["strength"], radius=stroke["radius"],
-                             falloff=stroke["falloff"], weights=weights, undo_limit=0)
+    brush = _make_brush(o, operand, stroke, weights)
     t1 = time.perf_counter()
     centers = brush.dab_centers(stroke["points"], stroke["spacing"])
-    with progress_callback(len(centers), "dabs", quiet=args.quiet) as cb:
+    with progress(report, len(centers), "dabs", o.quiet) as cb:
         moved = brush.stroke(centers, spacing=None, progress=cb)
     if operand is not mesh:    # welded: count the input's vertices (every copy of a moved vertex moved)
         moved = np.flatnonzero(np.isin(operand.weld_map, moved))
     t2 = time.perf_counter()
     if moved.size == 0:
         why = f"the stroke moved no vertex: {why_nothing_moved(operand, stroke, centers, weights)}"
-        if args.strict:
+        if o.strict:
             raise ParameterError(f"{why} (--strict)")
-        eprint(f"shapeflow brush: warning: {why}; the output is the input")
+        report.warning(f"shapeflow brush: warning: {why}; the output is the input")
     result = restore(brush.mesh)
-    save_mesh(out_path, result, args.force)
-    if args.image:
+    save_mesh(out_path, result, o.force, report)
+    if o.image:
         from .images import before_after
 
-        before_after(args.image, mesh, result, label_after=f"{stroke['brush']} stroke", up=args.image_up,
-                     quiet=args.quiet)
-    if not args.quiet:
+        before_after(o.image, mesh, result, label_after=f"{stroke['brush']} stroke", up=o.image_up, quiet=o.quiet,
+                     report=report)
+    if not o.quiet:
         n = len(centers)
-        eprint(f"shapeflow brush: {stroke['brush']}, {n} dab{'s' if n != 1 else ''} of radius {stroke['radius']:g}, "
-               f"{moved.size} of {mesh.n_vertices} vertices moved; "
-               + (f"compiling kernels {t_compile:.1f} s (first run only), " if t_compile else "")
-               + f"set-up {t1 - t0:.3f} s, "
-               f"dabs {t2 - t1:.3f} s ({1e3 * (t2 - t1) / max(n, 1):.2f} ms/dab) -> {out_path}")
-    return 0
+        report.message(f"shapeflow brush: {stroke['brush']}, {n} dab{'s' if n != 1 else ''} of radius "
+                       f"{stroke['radius']:g}, {moved.size} of {mesh.n_vertices} vertices moved; "
+                       + (f"compiling kernels {t_compile:.1f} s (first run only), " if t_compile else "")
+                       + f"set-up {t1 - t0:.3f} s, "
+                       f"dabs {t2 - t1:.3f} s ({1e3 * (t2 - t1) / max(n, 1):.2f} ms/dab) -> {out_path}")
 
 
 def why_nothing_moved(mesh, stroke: dict, centers, weights) -> str:
@@ -221,8 +245,7 @@ def why_nothing_moved(mesh, stroke: dict, centers, weights) -> str:
 
 def warm_up_brush() -> float:
     """Compile the brush's kernels on a small sphere (one dab of each kind); returns the seconds."""
-    import numpy as np
-
+    from ..mesh import Mesh
     from ..sculpt import Brush
 
     t0 = time.perf_counter()

@@ -1,4 +1,4 @@
-"""``shapeflow family IN OUTDIR --from 0 --to -240 --step -5``: one mesh per λ (figure 1).
+"""``family IN OUTDIR --from 0 --to -240 --step -5``: one mesh per λ (figure 1).
 
 The members come from :func:`shapeflow.family` (one shared multi-shift solve
 where the flow options allow it).  File names carry the member's position and
@@ -12,25 +12,18 @@ from __future__ import annotations
 import math
 import os
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from .. import params
 from ..errors import ParameterError
-from ..geometry import refresh_normals
-from ..io import output_target
-from .common import (
-    eprint,
-    load_mesh_arg,
-    note_fact,
-    option_names,
-    option_number,
-    progress_callback,
-    save_mesh,
-    welded_for_operator,
-)
-from .flow import OPTION_NAMES, add_flow_options, flow_kwargs
+from .common import load_mesh, option_names, option_number, progress, save_mesh, welded_for_operator
+from .flow import OPTION_NAMES, FlowSettings, add_flow_options
+from .report import Reporter
+
+__all__ = ["FamilyOptions", "member_lambdas", "member_names", "add_parser", "run"]
 
 #: members solved in one batch are held in memory together; above this many
 #: bytes of positions the family is solved in batches (in order of |λ|)
@@ -39,7 +32,31 @@ MAX_MEMBERS = 100_000
 FORMATS = ("ply", "obj", "off", "stl", "glb", "gltf")
 
 
-def register(sub) -> None:
+@dataclass(frozen=True)
+class FamilyOptions(FlowSettings):
+    """Options of ``family``: the flow's, the members' λ (``lambdas``, a comma-separated list, or
+    ``lam_from``/``lam_to``/``lam_step``), and the members' file names.  ``lams`` is the checked
+    list of λ, made with the object."""
+
+    lambdas: str | None = None
+    lam_from: float | None = None
+    lam_to: float | None = None
+    lam_step: float | None = None
+    name: str | None = None
+    format: str | None = None
+    strategy: str = "auto"
+    lams: tuple[float, ...] = field(init=False, repr=False)
+
+    def __post_init__(self):
+        object.__setattr__(self, "lams", tuple(member_lambdas(self)))
+        option_number("--lambda-border", self.lambda_border)
+        if self.name and (os.sep in self.name or (os.altsep and os.altsep in self.name)):
+            raise ParameterError(f"--name must be a plain file name prefix, got {self.name!r}")
+        self.check_run_settings()
+
+
+def add_parser(sub) -> None:
+    """The grammar of ``family``."""
     p = sub.add_parser(
         "family", help="a family of shapes, one mesh per λ, from one shared solve (figure 1)",
         description="Run the flow for a range of λ (--from, --from + --step, ... up to --to, included when it "
@@ -70,7 +87,7 @@ def register(sub) -> None:
     p.add_argument("--strategy", choices=["auto", "multishift", "separate"], default="auto",
                    help="auto: shared solve where the shift structure holds (default); multishift: "
                         "insist on it; separate: one solve per λ")
-    p.set_defaults(func=run)
+    p.set_defaults(options=FamilyOptions)
 
 
 def _retitle(parser, dest: str, **kw) -> None:
@@ -91,24 +108,25 @@ def _number(name: str, text: str) -> float:
     return params.number(name, v)
 
 
-def lams_from_args(args) -> list[float]:
-    """The members' λ from --lambdas or --from/--to/--step: A, A + S, ... up to B, B included when it lies on
-    the grid (within a billionth of a step: 0 to -240 step -5 gives 49 members)."""
-    ranged = any(x is not None for x in (args.lam_from, args.lam_to, args.lam_step))
-    if args.lambdas is not None:
+def member_lambdas(o) -> list[float]:
+    """The members' λ from ``o.lambdas`` or ``o.lam_from``/``o.lam_to``/``o.lam_step`` (``--lambdas`` or
+    ``--from/--to/--step``): A, A + S, ... up to B, B included when it lies on the grid (within a
+    billionth of a step: 0 to -240 step -5 gives 49 members)."""
+    ranged = any(x is not None for x in (o.lam_from, o.lam_to, o.lam_step))
+    if o.lambdas is not None:
         if ranged:
             raise ParameterError("give either --lambdas or --from/--to/--step, not both")
-        parts = [s.strip() for s in args.lambdas.split(",")]
+        parts = [s.strip() for s in o.lambdas.split(",")]
         if not any(parts):
             raise ParameterError("--lambdas is empty")
         lams = [_number("--lambdas", s) for s in parts if s]
     else:
-        if args.lam_to is None or args.lam_step is None:
+        if o.lam_to is None or o.lam_step is None:
             raise ParameterError("give the λ of the members: --to and --step (with --from, default 0), "
                                  "or --lambdas")
-        a = 0.0 if args.lam_from is None else _number("--from", str(args.lam_from))
-        b = _number("--to", str(args.lam_to))
-        s = _number("--step", str(args.lam_step))
+        a = 0.0 if o.lam_from is None else _number("--from", str(o.lam_from))
+        b = _number("--to", str(o.lam_to))
+        s = _number("--step", str(o.lam_step))
         if s == 0.0:
             raise ParameterError("--step must not be 0")
         steps = (b - a) / s
@@ -141,46 +159,32 @@ def member_names(stem: str, lams, ext: str) -> list[str]:
     return [f"{stem}_{i:0{width_i}d}_lam{x:+0{width_v}.{d}f}.{ext}" for i, x in enumerate(lams)]
 
 
-def _output_format(args) -> str:
-    if args.format:
-        return args.format
-    if not args.input.startswith("example:"):
-        ext = Path(args.input).suffix.lower().lstrip(".")
+def _output_format(o: FamilyOptions, source: str) -> str:
+    if o.format:
+        return o.format
+    if not source.startswith("example:"):
+        ext = Path(source).suffix.lower().lstrip(".")
         if ext in FORMATS:
             return ext
     return "ply"
 
 
-def _stem(args) -> str:
-    if args.name:
-        if os.sep in args.name or (os.altsep and os.altsep in args.name):
-            raise ParameterError(f"--name must be a plain file name prefix, got {args.name!r}")
-        return args.name
-    if args.input.startswith("example:"):
-        return args.input.split(":", 1)[1] or "example"
-    return Path(args.input).stem
+def _stem(o: FamilyOptions, source: str) -> str:
+    if o.name:
+        return o.name
+    if source.startswith("example:"):
+        return source.split(":", 1)[1] or "example"
+    return Path(source).stem
 
 
-def run(args) -> int:
-    from ..flow.family import family
-
-    t0 = time.perf_counter()
-    lams = lams_from_args(args)
-    option_number("--lambda-border", args.lambda_border)
-    image = getattr(args, "image", None)
-    if image:
-        from .images import check_picture_path
-
-        check_picture_path(image)  # a bad picture path fails before any work
-    # members drawn in the --image strip: at most 12, evenly spaced, first and last included
-    panels = sorted(set(np.linspace(0, len(lams) - 1, min(12, len(lams))).round().astype(int).tolist()))
-    kept = {}
-    outdir = Path(args.output)
+def _member_paths(o: FamilyOptions, source: str, outdir: Path) -> tuple[list[str], list[Path]]:
+    """The members' file names and paths, checked before any work: OUTDIR is a folder or can be
+    made, and no member file exists unless ``--force``."""
     if outdir.exists() and not outdir.is_dir():
         raise ParameterError(f"OUTDIR {str(outdir)!r} exists and is not a directory")
-    names = member_names(_stem(args), lams, _output_format(args))
+    names = member_names(_stem(o, source), o.lams, _output_format(o, source))
     paths = [outdir / nm for nm in names]
-    if not args.force:
+    if not o.force:
         exist = [p for p in paths if p.exists()]
         if exist:
             raise ParameterError(f"{len(exist)} member file(s) already exist in {str(outdir)!r} "
@@ -188,13 +192,33 @@ def run(args) -> int:
     parent = outdir.resolve().parent
     if not outdir.exists() and not parent.is_dir():
         raise ParameterError(f"OUTDIR {str(outdir)!r}: its folder {str(parent)!r} does not exist")
-    mesh = load_mesh_arg(args.input)
+    return names, paths
+
+
+def run(o: FamilyOptions, source: str, target: str, report: Reporter) -> None:
+    """Write the family of ``source`` into the folder ``target`` (and the strip ``o.image``)."""
+    from ..flow.family import family
+    from ..geometry import refresh_normals
+    from ..io import output_target
+
+    t0 = time.perf_counter()
+    lams = list(o.lams)
+    if o.image:
+        from .images import check_picture_path
+
+        check_picture_path(o.image)  # a bad picture path fails before any work
+    # members drawn in the --image strip: at most 12, evenly spaced, first and last included
+    panels = sorted(set(np.linspace(0, len(lams) - 1, min(12, len(lams))).round().astype(int).tolist()))
+    kept = {}
+    outdir = Path(target)
+    names, paths = _member_paths(o, source, outdir)
+    mesh = load_mesh(source, report)
     with option_names(OPTION_NAMES):
-        operand, kw, restore = welded_for_operator(mesh, flow_kwargs(args, mesh), "family", args.quiet)
+        operand, kw, restore = welded_for_operator(mesh, o.flow_kwargs(mesh), "family", o.quiet, report)
     outdir.mkdir(exist_ok=True)
-    for p in (paths[0], image):   # every output writable before any work (the folder exists now)
+    for p in (paths[0], o.image):   # every output writable before any work (the folder exists now)
         if p:
-            output_target(p, force=args.force)
+            output_target(p, force=o.force)
     # batches bound the memory of the positions held at once (one batch for any usual family)
     per_member = 2 * 24 * max(1, mesh.n_vertices)
     batch = max(1, BATCH_BYTES // per_member)
@@ -202,7 +226,7 @@ def run(args) -> int:
     batches = [order[i:i + batch] for i in range(0, len(order), batch)]
     reports = []
     # one bar over both phases: every member is counted once solved and once written
-    with progress_callback(2 * len(lams), "family (solve+write)", quiet=args.quiet) as cb:
+    with progress(report, 2 * len(lams), "family (solve+write)", o.quiet) as cb:
         done = 0
         for idx in batches:
             def solved(d, total, _base=done):
@@ -210,26 +234,25 @@ def run(args) -> int:
                     cb(_base + d, 2 * len(lams))
 
             with option_names(OPTION_NAMES):
-                shapes, rep = family(operand, [lams[i] for i in idx], strategy=args.strategy,
+                shapes, rep = family(operand, [lams[i] for i in idx], strategy=o.strategy,
                                      progress=solved, return_report=True, **kw)
             reports.append(rep)
             done += len(idx)
             for i, V in zip(idx, shapes):
-                save_mesh(str(paths[i]), restore(refresh_normals(operand.with_vertices(V))), args.force)
-                if image and i in panels:
+                save_mesh(str(paths[i]), restore(refresh_normals(operand.with_vertices(V))), o.force, report)
+                if o.image and i in panels:
                     kept[i] = V
                 done += 1
                 if cb is not None:
                     cb(done, 2 * len(lams))
-    note_fact("reports", reports)
-    if image:
+    report.fact("reports", reports)
+    if o.image:
         from .images import family_image
 
-        family_image(image, [operand.with_vertices(kept[i]) for i in panels], [lams[i] for i in panels],
-                     up=args.image_up, quiet=args.quiet)
-    if not args.quiet:
+        family_image(o.image, [operand.with_vertices(kept[i]) for i in panels], [lams[i] for i in panels],
+                     up=o.image_up, quiet=o.quiet, report=report)
+    if not o.quiet:
         summary = "; ".join(r.summary() for r in reports)
-        eprint(f"shapeflow family: {len(lams)} members, λ {lams[0]:g} .. {lams[-1]:g}, "
-               f"{mesh.n_vertices} vertices: {summary}; total {time.perf_counter() - t0:.3f} s "
-               f"-> {outdir}{os.sep}{names[0]} .. {names[-1]}")
-    return 0
+        report.message(f"shapeflow family: {len(lams)} members, λ {lams[0]:g} .. {lams[-1]:g}, "
+                       f"{mesh.n_vertices} vertices: {summary}; total {time.perf_counter() - t0:.3f} s "
+                       f"-> {outdir}{os.sep}{names[0]} .. {names[-1]}")

@@ -1,17 +1,43 @@
-"""``shapeflow subdivide IN OUT``: Catmull–Clark or simple subdivision, weights carried along."""
+"""``subdivide IN OUT``: Catmull–Clark or simple subdivision, weights carried along."""
 
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from .common import eprint, load_mesh_arg, may_need_weld, progress_callback, resolve_output, save_mesh, write_values
+from ..errors import ParameterError
+from .common import load_mesh, progress, resolve_output, save_mesh, write_values
 from .images import add_image_options
+from .report import Reporter
+
+__all__ = ["SubdivideOptions", "add_parser", "run"]
 
 
-def register(sub) -> None:
+@dataclass(frozen=True)
+class SubdivideOptions:
+    """Options of ``subdivide``, named as on the command line (``weights_rule`` is ``--weights-rule``)."""
+
+    levels: int = 1
+    scheme: str = "catmull-clark"
+    boundary: str = "smooth"
+    weights_rule: str = "linear"
+    weights: str | None = None          #: a weights file (.npy or text) for the input
+    weights_out: str | None = None      #: where to write the subdivided weights too
+    force: bool = False
+    quiet: bool = False
+    image: str | None = None
+    image_up: str = "auto"
+
+    def __post_init__(self):
+        if self.levels < 0:
+            raise ParameterError(f"--levels must be >= 0; got {self.levels}")
+
+
+def add_parser(sub) -> None:
+    """The grammar of ``subdivide``."""
     p = sub.add_parser(
         "subdivide",
         help="Catmull-Clark or simple subdivision (any mix of triangles, quads, n-gons)",
@@ -40,12 +66,10 @@ def register(sub) -> None:
     p.add_argument("--force", action="store_true", help="allow OUT to be the input file, or a read-only file")
     p.add_argument("--quiet", "-q", action="store_true", help="no summary on stderr")
     add_image_options(p)
-    p.set_defaults(func=run)
+    p.set_defaults(options=SubdivideOptions)
 
 
 def _load_weights(path: str, n: int) -> np.ndarray:
-    from ..errors import ParameterError
-
     p = Path(path)
     if p.suffix.lower() == ".npy":
         w = np.load(p, allow_pickle=False)
@@ -60,42 +84,39 @@ def _load_weights(path: str, n: int) -> np.ndarray:
     return w
 
 
-def run(args) -> int:
-    from ..errors import ParameterError
+def run(o: SubdivideOptions, source: str, target: str, report: Reporter) -> None:
+    """Subdivide ``source`` and write ``target`` (and ``o.weights_out``, ``o.image``)."""
+    from ..geometry.weld import weld_if_split
     from ..subdivision import subdivide
 
-    if args.levels < 0:
-        raise ParameterError(f"--levels must be >= 0; got {args.levels}")
-    resolve_output(args.input, args.output, args.force, args.image, args.weights_out)
-    mesh = load_mesh_arg(args.input)
-    if args.weights:
-        mesh = mesh.with_weights(_load_weights(args.weights, mesh.n_vertices))
-    from ..geometry.weld import weld
-
-    welded = weld(mesh) if may_need_weld(mesh) else mesh
-    if welded.n_vertices < mesh.n_vertices:   # a soup or split seams would subdivide as separate patches
-        if not args.quiet:
-            eprint(f"shapeflow subdivide: {mesh.n_vertices - welded.n_vertices} vertices coincide with others "
-                   f"(seams or a triangle soup): welded to {welded.n_vertices} before subdividing "
-                   "(corner attributes such as UVs keep their seams)")
+    resolve_output(source, target, o.force, o.image, o.weights_out)
+    mesh = load_mesh(source, report)
+    if o.weights:
+        mesh = mesh.with_weights(_load_weights(o.weights, mesh.n_vertices))
+    welded = weld_if_split(mesh)
+    if welded is not mesh:   # a soup or split seams would subdivide as separate patches
+        if not o.quiet:
+            report.message(f"shapeflow subdivide: {mesh.n_vertices - welded.n_vertices} vertices coincide with "
+                           f"others (seams or a triangle soup): welded to {welded.n_vertices} before subdividing "
+                           "(corner attributes such as UVs keep their seams)")
         mesh = welded
     t0 = time.perf_counter()
-    with progress_callback(args.levels, "levels") as cb:
-        out = subdivide(mesh, args.levels, scheme=args.scheme, boundary=args.boundary,
-                        weights_rule=args.weights_rule, progress=cb)
+    with progress(report, o.levels, "levels") as cb:
+        out = subdivide(mesh, o.levels, scheme=o.scheme, boundary=o.boundary, weights_rule=o.weights_rule,
+                        progress=cb)
     dt = time.perf_counter() - t0
-    if args.weights_out and out.weights is None:
+    if o.weights_out and out.weights is None:
         raise ParameterError("--weights-out: the mesh has no weights (give --weights)")
-    save_mesh(args.output, out, args.force)
-    if args.weights_out:
-        write_values(args.weights_out, out.weights, args.force)
-    if not args.quiet:
-        eprint(
+    save_mesh(target, out, o.force, report)
+    if o.weights_out:
+        write_values(o.weights_out, out.weights, o.force)
+    if not o.quiet:
+        report.message(
             f"subdivide: {mesh.n_vertices} vertices, {mesh.n_faces} faces -> "
             f"{out.n_vertices} vertices, {out.n_faces} faces "
-            f"({args.scheme}, {args.levels} level{'s' if args.levels != 1 else ''}) in {dt:.3f} s"
+            f"({o.scheme}, {o.levels} level{'s' if o.levels != 1 else ''}) in {dt:.3f} s"
         )
-    if args.image:
+    if o.image:
         from .images import subdivide_image
-        subdivide_image(args, mesh, out)
-    return 0
+
+        subdivide_image(o, mesh, out, report)
