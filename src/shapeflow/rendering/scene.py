@@ -179,7 +179,8 @@ class Window:
         self.transparent = transparent
         self.size = size
 
-    def draw(self, actor, camera: Camera) -> np.ndarray:
+    def draw(self, actors, camera: Camera) -> np.ndarray:
+        """Render the actors (one, or a list drawn together) seen by ``camera``; the picture as an array."""
         vtk = self.vtk
         ren = vtk.vtkRenderer()
         ren.SetBackground(*BACKGROUND)
@@ -191,7 +192,8 @@ class Window:
         kit = vtk.vtkLightKit()
         kit.AddLightsToRenderer(ren)
         ren.TwoSidedLightingOn()
-        ren.AddActor(actor)
+        for actor in actors if isinstance(actors, (list, tuple)) else [actors]:
+            ren.AddActor(actor)
         camera.apply(ren.GetActiveCamera())
         ren.ResetCameraClippingRange()
         self.win.AddRenderer(ren)
