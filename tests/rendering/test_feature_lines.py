@@ -119,6 +119,23 @@ def test_lines_are_drawn_along_the_visible_sharp_edges_only():
 
 
 @needs_render
+def test_vtk_coincident_topology_mode_is_restored():
+    """The polygon offset the lines need is VTK's process-wide setting: on while a picture with lines is
+    drawn, the caller's afterwards."""
+    from vtkmodules.vtkRenderingCore import VTK_RESOLVE_SHIFT_ZBUFFER, vtkMapper
+
+    before = vtkMapper.GetResolveCoincidentTopology()
+    R.render(grid_cube(), None, color="none", size=(64, 64), colorbar=False, feature_lines=30.0)
+    assert vtkMapper.GetResolveCoincidentTopology() == before
+    vtkMapper.SetResolveCoincidentTopologyToShiftZBuffer()
+    try:
+        R.render(grid_cube(), None, color="none", size=(64, 64), colorbar=False, feature_lines=30.0)
+        assert vtkMapper.GetResolveCoincidentTopology() == VTK_RESOLVE_SHIFT_ZBUFFER
+    finally:
+        vtkMapper.SetResolveCoincidentTopology(before)
+
+
+@needs_render
 def test_the_ways_to_name_the_edges_draw_the_same_lines():
     cube = grid_cube()
     kw = dict(color="none", view=VIEW, size=(200, 200), colorbar=False)

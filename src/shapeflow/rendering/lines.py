@@ -88,8 +88,7 @@ def line_actor(vtk, mesh, pairs: np.ndarray, color, width: float):
     mapper = vtk.vtkPolyDataMapper()
     mapper.SetInputData(poly)
     mapper.ScalarVisibilityOff()
-    mapper.SetResolveCoincidentTopologyToPolygonOffset()
-    mapper.SetRelativeCoincidentTopologyLineOffsetParameters(-2.0, -8.0)
+    mapper.SetRelativeCoincidentTopologyLineOffsetParameters(-2.0, -8.0)   # with the window's polygon offset
     actor = vtk.vtkActor()
     actor.SetMapper(mapper)
     prop = actor.GetProperty()
