@@ -2,12 +2,15 @@
 
     python docs/gallery.py [FIGURE ...] [--shared DIR] [--out DIR]
 
-FIGURE is any of ``fig1 fig5 fig6 fig7 fig8 fig9 fig11`` (default: all).  Needs the
-render extra (``pip install 'shapeflow[render]'``) and the shared meshes
+FIGURE is any of ``fig1 fig5 … fig14`` (default: all).  Needs the render extra
+(``pip install 'shapeflow[render]'``); the paper's figures need the shared meshes
 (``../shared/meshes`` beside the repository, or ``--shared`` /
-``$SHAPEFLOW_SHARED``).  Each picture is saved as a 256-colour dithered PNG to
-keep it small (about 60–130 KB); the script prints what it did and the numbers
-the captions quote.
+``$SHAPEFLOW_SHARED``), fig13 builds its mesh here, and fig14 needs Blender as a
+Python module for its reference (``--blender-python PYTHON``, a Python with
+``bpy==5.0.1``, or ``$SHAPEFLOW_BLENDER_PYTHON``).  A figure whose inputs are
+missing is skipped, naming them.  Each picture is saved as a 256-colour dithered
+PNG to keep it small (about 60–130 KB); the script prints what it did and the
+numbers the captions quote.
 
 Figures (numbers from "Shape Enhanced With an Adapted Laplacian Operator For
 Hybrid Quad/Triangle Meshes"):
@@ -23,14 +26,22 @@ Hybrid Quad/Triangle Meshes"):
 * fig9  one stroke along Spot's back: the enhancement brush (λ=−30 per dab) against an
         inflate brush, coloured by displacement;
 * fig11 normalised (eq. 10) vs area-normalised (eq. 9) operator, λ=−50, on a
-        model and on the same model scaled by 4.
+        model and on the same model scaled by 4;
+* fig12 the same weighted enhancement on three poses of Spot;
+* fig13 a hexagonal nut (built here): plain enhancement against feature-aware
+        enhancement (feature_angle=30), feature lines drawn;
+* fig14 creased Catmull–Clark subdivision of a block: shapeflow beside Blender's
+        Subdivision Surface with creases, and their distance.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import os
+import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -48,11 +59,15 @@ class Unavailable(RuntimeError):
     """A figure that cannot be made here (a module or a mesh is missing)."""
 
 
-def shared_dir(arg: str | None) -> Path:
+#: the Python with Blender's bpy that fig14 runs its reference in (set by main)
+BLENDER_PYTHON: list = []
+
+
+def shared_dir(arg: str | None) -> Path | None:
     for cand in (arg, os.environ.get("SHAPEFLOW_SHARED"), ROOT.parent / "shared", ROOT / "shared"):
         if cand and (Path(cand) / "meshes").is_dir():
             return Path(cand)
-    raise SystemExit("shared meshes not found: pass --shared DIR (the folder holding meshes/)")
+    return None
 
 
 def save_small(path: Path, img: np.ndarray) -> int:
@@ -68,7 +83,9 @@ def save_small(path: Path, img: np.ndarray) -> int:
     return size
 
 
-def load(meshes: Path, name: str) -> sf.Mesh:
+def load(meshes: Path | None, name: str) -> sf.Mesh:
+    if meshes is None:
+        raise Unavailable("the shared meshes were not found: pass --shared DIR (the folder holding meshes/)")
     p = meshes / f"{name}.obj"
     if not p.exists():
         raise Unavailable(f"{p} is missing")
@@ -359,6 +376,166 @@ def figure12_poses(meshes: Path, out: Path) -> str:
             f"poses, turned back, differs from the rest pose's by at most {max(errs):.1e} of its size")
 
 
+# --------------------------------------------------------------------------
+# sharp features
+
+def hex_nut(per_side: int = 8, rings: int = 3, layers: int = 4, width: float = 2.0, height: float = 0.9,
+            chamfer: float = 0.12, hole: float = 0.55, sink: float = 0.1, triangles=(1, 4)) -> sf.Mesh:
+    """A hexagonal nut standing on its face (axis z, a flat side facing −y): flat-to-flat ``width``, a round
+    hole of radius ``hole``; the outer rims chamfered by ``chamfer`` and the hole countersunk by ``sink``,
+    both at 45°.  Every loop around the axis has 6 × ``per_side`` points; the loops, outside up, over the
+    top, down the hole and under the bottom, are joined by bands of quads.  The walls of the sides listed
+    in ``triangles`` and the middle ring of each face are cut into triangles: a mix of quads and triangles."""
+    n = 6 * per_side
+    k = np.arange(n)
+    side, t = k // per_side, (k % per_side) / per_side
+    a0, a1 = np.radians(60.0 * side), np.radians(60.0 * side + 60.0)     # corners at 0°, 60°, …: flats at 30°, 90°, …
+    hexagon = (1 - t)[:, None] * np.c_[np.cos(a0), np.sin(a0)] + t[:, None] * np.c_[np.cos(a1), np.sin(a1)]
+    ang = np.arctan2(hexagon[:, 1], hexagon[:, 0])
+    circle = np.c_[np.cos(ang), np.sin(ang)]                               # the hole's points at the same angles
+    corner = width / np.sqrt(3.0)
+    inner = corner - chamfer / np.cos(np.radians(30.0))                     # the chamfered face's hexagon
+    h = height / 2
+    face = [(1 - i / rings) * inner * hexagon + (i / rings) * (hole + sink) * circle for i in range(rings + 1)]
+    loops = ([(corner * hexagon, z) for z in np.linspace(-h + chamfer, h - chamfer, layers + 1)]
+             + [(xy, h) for xy in face] + [(hole * circle, z) for z in np.linspace(h - sink, -h + sink, layers + 1)]
+             + [(xy, -h) for xy in face[::-1]])
+    V = np.vstack([np.c_[xy, np.full(n, z)] for xy, z in loops])
+    faces = []
+    for lo in range(len(loops)):
+        hi = (lo + 1) % len(loops)
+        quads = np.c_[lo * n + k, lo * n + (k + 1) % n, hi * n + (k + 1) % n, hi * n + k]
+        middle = lo in (layers + 1 + rings // 2, len(loops) - 2 - rings // 2)    # a ring of each face
+        cut = np.isin(side, triangles) if lo < layers else np.full(n, middle)
+        faces += quads[cut][:, [0, 1, 2]].tolist() + quads[cut][:, [0, 2, 3]].tolist() + quads[~cut].tolist()
+    return sf.Mesh(V, faces)
+
+
+def flat_regions(mesh: sf.Mesh, sharp: np.ndarray) -> list[np.ndarray]:
+    """Vertex sets of the regions bounded by sharp edges (faces joined across the other edges) that are flat."""
+    import scipy.sparse as sp
+    from scipy.sparse.csgraph import connected_components
+
+    t = mesh.topology
+    two = np.flatnonzero((t.edge_face_count == 2) & ~sharp)
+    o = t.edge_corner_offsets[two]
+    f0, f1 = t.corner_face[t.edge_corners[o]], t.corner_face[t.edge_corners[o + 1]]
+    m = mesh.n_faces
+    _, label = connected_components(sp.coo_matrix((np.ones(two.size), (f0, f1)), shape=(m, m)), directed=False)
+    corner_label = np.repeat(label, mesh.face_sizes)
+    out = []
+    for c in np.unique(label):
+        ids = np.unique(mesh.face_indices[corner_label == c])
+        if flatness(mesh.vertices[ids]) <= 1e-12 * mesh.diagonal:
+            out.append(ids)
+    return out
+
+
+def flatness(P: np.ndarray) -> float:
+    """Largest distance of the points from their best-fit plane."""
+    c = P.mean(axis=0)
+    return float(np.abs((P - c) @ np.linalg.svd(P - c)[2][2]).max())
+
+
+def figure13_hard_surface(meshes: Path, out: Path) -> str:
+    """A hexagonal nut with a countersunk round hole and chamfered rims (quads and triangles, built here):
+    plain enhancement bends its flat faces and straight edges; feature-aware enhancement (edges bent by
+    more than 30°, found at the input) keeps them flat and straight while the hole, a round part, still
+    enhances.  The input's sharp edges are drawn on all three."""
+    from shapeflow.geometry.features import angle_sharp_edges
+
+    nut = hex_nut()
+    strength = 10.0                                       # λ = −10
+    sharp = angle_sharp_edges(nut, 30.0)
+    plain = sf.enhance(nut, strength)
+    kept = sf.enhance(nut, strength, feature_angle=30.0)
+    regions = flat_regions(nut, sharp)
+    diag = nut.diagonal
+    worst = [max(flatness(m.vertices[r]) for r in regions) / diag for m in (plain, kept)]
+    hole = np.linalg.norm(nut.vertices[:, :2], axis=1) < 0.56
+    moved = np.linalg.norm(kept.vertices[hole] - nut.vertices[hole], axis=1).max() / diag
+    c = nut.face_count_by_size()
+    img = render_meshes(
+        [nut, plain, kept], None,
+        labels=[f"nut: {c[4]} quads, {c[3]} triangles", f"enhanced (λ={-strength:g})",
+                "enhanced, feature_angle=30"],
+        color="none", shading="flat", up="z", view=(20, 35), size=(340, 300),
+        feature_lines=nut.topology.edges[sharp])
+    path = out / "fig13_hard_surface.png"
+    kb = save_small(path, img) / 1e3
+    return (f"{path.name} ({kb:.0f} KB): {int(sharp.sum())} sharp edges, {len(regions)} flat regions; their "
+            f"largest distance from a plane: plain {worst[0]:.3g}, feature-aware {worst[1]:.1e}; the hole moves by "
+            f"{moved:.3f} (× diagonal)")
+
+
+def crease_block() -> tuple[sf.Mesh, np.ndarray, np.ndarray, str]:
+    """A 3 × 2 × 1.2 block cage (each side 2 × 2 quads) with Blender edge creases: 1 on the top outline,
+    0.5 on the vertical edges, 0.2 on the bottom outline.  Returns the cage, the pairs, their values and a
+    caption for them."""
+    box = sf.Mesh([[x, y, z] for x in (-1.5, 1.5) for y in (-1.0, 1.0) for z in (0.0, 1.2)],
+                  [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]])
+    cage = subdivide(box, 1, scheme="simple")
+    E = cage.topology.edges
+    V = cage.vertices
+    end_x, end_y = np.abs(V[:, 0]) == 1.5, np.abs(V[:, 1]) == 1.0          # on the block's sides
+    rim = end_x | end_y
+    both = lambda mask: mask[E[:, 0]] & mask[E[:, 1]]                     # noqa: E731 - both ends in mask
+    top, bottom = both(rim & (V[:, 2] == 1.2)), both(rim & (V[:, 2] == 0.0))
+    vertical = both(end_x & end_y)
+    pairs = np.vstack([E[top], E[vertical], E[bottom]])
+    values = np.concatenate([np.full(top.sum(), 1.0), np.full(vertical.sum(), 0.5), np.full(bottom.sum(), 0.2)])
+    return cage, pairs, values, "creases 1, 0.5, 0.2"
+
+
+def blender_subdivision(cage: sf.Mesh, levels: int, pairs, values) -> tuple[sf.Mesh, str]:
+    """Blender's Subdivision Surface with creases on the cage (benchmarks/blender_ref.py, run in BLENDER_PYTHON)."""
+    if not BLENDER_PYTHON:
+        raise Unavailable("needs Blender's bpy for the reference: --blender-python PYTHON (a Python with bpy 5.0.1)")
+    with tempfile.TemporaryDirectory() as tmp:
+        src, dst = Path(tmp) / "cage.npz", Path(tmp) / "blender.npz"
+        np.savez(src, V=cage.vertices, fs=cage.face_sizes, fi=cage.face_indices, pairs=pairs, values=values)
+        code = ("import sys, numpy as np\n"
+                f"sys.path.insert(0, {str(ROOT / 'benchmarks')!r})\n"
+                "import bpy, blender_ref\n"
+                f"d = np.load({str(src)!r})\n"
+                f"P, fs, fi, _, _ = blender_ref.subdivision_surface(d['V'], d['fs'], d['fi'], levels={levels}, "
+                "creases=(d['pairs'], d['values']))\n"
+                f"np.savez({str(dst)!r}, V=P, fs=fs, fi=fi, version=bpy.app.version_string)\n")
+        proc = subprocess.run([BLENDER_PYTHON[0], "-c", code], capture_output=True, text=True, timeout=600)
+        if proc.returncode != 0:
+            last = (proc.stderr.strip().splitlines() or [""])[-1]
+            raise Unavailable(f"Blender's run ({BLENDER_PYTHON[0]}) ended with status {proc.returncode}: {last}")
+        d = np.load(dst)
+        return sf.Mesh.from_csr(d["V"], d["fs"], d["fi"]), str(d["version"])
+
+
+def figure14_creases(meshes: Path, out: Path) -> str:
+    """Creased Catmull–Clark subdivision (3 levels) of a block cage: shapeflow's
+    ``subdivide(cage, 3, creases=...)`` beside Blender's Subdivision Surface modifier with the same
+    creases (``crease_edge``), and the distance from each of shapeflow's points to Blender's."""
+    from scipy.spatial import cKDTree
+
+    cage, pairs, values, what = crease_block()
+    levels = 3
+    ours = subdivide(cage, levels, creases=(pairs, values))
+    theirs, version = blender_subdivision(cage, levels, pairs, values)
+    dist, j = cKDTree(theirs.vertices).query(ours.vertices)
+    if np.unique(j).size != j.size or theirs.n_vertices != ours.n_vertices:
+        raise RuntimeError("shapeflow's and Blender's points do not pair up one to one")
+    rel = dist / theirs.diagonal
+    label = "distance to Blender's point, 1e-8 × diagonal"
+    img = render_meshes(
+        [cage, ours, theirs, ours.with_attributes(**{label: rel * 1e8})], None,
+        labels=[f"cage, {what}", f"shapeflow, {levels} levels", f"Blender {version}", "distance"],
+        color=["none", "none", "none", label], clim=(0.0, float(rel.max() * 1e8)), edges=[True, False, False, False],
+        shading=["flat", "smooth", "smooth", "smooth"],
+        feature_lines=[pairs, None, None, None], up="z", view=(30, 22), size=(290, 260))
+    path = out / "fig14_creased_subdivision.png"
+    kb = save_small(path, img) / 1e3
+    return (f"{path.name} ({kb:.0f} KB): {ours.n_vertices} points; largest distance to Blender {version}'s "
+            f"{rel.max():.2g} of the diagonal (median {np.median(rel):.2g})")
+
+
 FIGURES = {
     "fig1": figure1_family,
     "fig5": figure5_cage,
@@ -369,6 +546,8 @@ FIGURES = {
     "fig10": figure10_brush_speed,
     "fig11": figure11_normalisation,
     "fig12": figure12_poses,
+    "fig13": figure13_hard_surface,
+    "fig14": figure14_creases,
 }
 
 
@@ -378,6 +557,8 @@ def main(argv=None) -> int:
                     help=f"which figures ({', '.join(FIGURES)}; default all)")
     ap.add_argument("--shared", help="folder holding meshes/ (default ../shared beside the repository)")
     ap.add_argument("--out", default=str(HERE / "img"), help="output folder (default docs/img)")
+    ap.add_argument("--blender-python", default=os.environ.get("SHAPEFLOW_BLENDER_PYTHON"), metavar="PYTHON",
+                    help="a Python with bpy 5.0.1 for fig14's reference (default: this one, if it has bpy)")
     a = ap.parse_args(argv)
     unknown = [f for f in a.figures if f not in FIGURES]
     if unknown:
@@ -387,7 +568,12 @@ def main(argv=None) -> int:
     if not available():
         print("rendering is not available: pip install 'shapeflow[render]'", file=sys.stderr)
         return 1
-    meshes = shared_dir(a.shared) / "meshes"
+    shared = shared_dir(a.shared)
+    meshes = None if shared is None else shared / "meshes"
+    if a.blender_python:
+        BLENDER_PYTHON.append(a.blender_python)
+    elif importlib.util.find_spec("bpy") is not None:
+        BLENDER_PYTHON.append(sys.executable)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
     failed = 0

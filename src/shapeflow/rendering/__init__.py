@@ -19,6 +19,12 @@ What is drawn
   ``"flat"``: one normal per triangle of the rasterised polygon.
 * ``edges=True`` draws every polygon's own edges (quads as quads, n-gons as
   n-gons); VTK hides the diagonals of the triangles it rasterises.
+* ``feature_lines=`` draws sharp edges as lines over the surface, hidden ones
+  hidden (:mod:`.lines`): those whose faces bend by more than a feature angle
+  (``30``, or ``True`` for 30°), those the mesh marks (``"mesh"``: smoothing
+  groups, crease tags, a subdivision's creases), or given vertex pairs; one
+  choice for all panels or one per mesh, in ``feature_color`` (an orange red)
+  ``feature_width`` pixels wide.
 * Colour fields (``color=``): ``"curvature"`` (signed mean curvature with
   barycentric areas, or the mesh's ``curvature`` attribute when it has one:
   blue concave, red convex, symmetric range), ``"displacement"`` (signed

@@ -14,9 +14,10 @@ from ..mesh.convert import as_mesh
 from ..types import Color, PathLike, Size, View
 from .backend import choose_backend, colormap, pil_modules, to_rgb, vtk_classes
 from .fields import Field, color_field, robust_range
+from .lines import FeatureLines, PanelLines
 from .overlay import colorbar_height, colorbar_image, label_band
 from .scene import Window, camera, make_actor
-from .style import EDGE_COLOR, MSAA_MAX_FACES
+from .style import EDGE_COLOR, FEATURE_COLOR, MSAA_MAX_FACES
 
 
 def save_png(path, image: np.ndarray, *, force: bool = False) -> None:
@@ -54,7 +55,8 @@ def render(mesh: Mesh, path: PathLike | None = None, *, color: Color = "curvatur
            shading: str = "smooth", colorbar: bool = True, cmap: str | None = None,
            clim: Sequence[float] | None = None, label: str | None = None, transparent: bool = False,
            curvature_area: str = "barycentric", edge_color: Color = EDGE_COLOR,
-           line_width: float = 1.0) -> np.ndarray:
+           line_width: float = 1.0, feature_lines: FeatureLines = None, feature_color: Color = FEATURE_COLOR,
+           feature_width: float = 2.5) -> np.ndarray:
     """Render one mesh offscreen; return the picture and write it as a PNG if ``path`` is given.
 
     Parameters
@@ -94,6 +96,13 @@ def render(mesh: Mesh, path: PathLike | None = None, *, color: Color = "curvatur
         A title above the model.
     transparent : bool
         Return RGBA with a transparent background.
+    feature_lines : float, True, "mesh" or (k, 2) array, optional
+        Draw sharp edges as lines over the surface: those whose two faces bend by more than
+        this many degrees (``True``: 30°), those the mesh marks (``"mesh"``: smoothing-group
+        borders, crease tags, a subdivision's creases), or the given vertex pairs.  Hidden
+        ones stay hidden.
+    feature_color, feature_width
+        The lines' colour and width in pixels.
 
     Returns
     -------
@@ -104,6 +113,7 @@ def render(mesh: Mesh, path: PathLike | None = None, *, color: Color = "curvatur
                          edges=edges, size=size, shading=shading, colorbar=colorbar, cmap=cmap, clim=clim,
                          labels=None if label is None else [label], transparent=transparent,
                          curvature_area=curvature_area, edge_color=edge_color, line_width=line_width,
+                         feature_lines=feature_lines, feature_color=feature_color, feature_width=feature_width,
                          _whole_size=True)
 
 
@@ -116,6 +126,8 @@ def render_meshes(meshes: Sequence[Mesh], path: PathLike | None = None, *,
                   shading: str | Sequence[str] = "smooth", colorbar: bool = True, cmap: str | None = None,
                   clim: Sequence[float] | None = None, framing: str = "shared", transparent: bool = False,
                   curvature_area: str = "barycentric", edge_color: Color = EDGE_COLOR, line_width: float = 1.0,
+                  feature_lines: FeatureLines | list = None, feature_color: Color = FEATURE_COLOR,
+                  feature_width: float = 2.5,
                   _whole_size: bool = False) -> np.ndarray:
     """Render several meshes side by side, with one camera, one colour range and one colour bar.
 
@@ -143,7 +155,10 @@ def render_meshes(meshes: Sequence[Mesh], path: PathLike | None = None, *,
     framing : {"shared", "rows", "each"}
         One camera fitted to all meshes (sizes comparable), one per row of
         the grid, or one per mesh.
-    color, view, up, front, colorbar, cmap, clim, transparent, curvature_area, edge_color, line_width
+    feature_lines : as in :func:`render`, or a list with one of those per mesh
+        Sharp edges drawn as lines (a list of vertex pairs is one choice for every mesh).
+    color, view, up, front, colorbar, cmap, clim, transparent, curvature_area, edge_color, line_width,
+    feature_color, feature_width
         As in :func:`render` (the first mesh's ``metadata["front"]`` when ``front`` is not given).
     """
     meshes = list(meshes)
@@ -175,6 +190,8 @@ def render_meshes(meshes: Sequence[Mesh], path: PathLike | None = None, *,
     if len(refs) != k:
         raise ParameterError(f"{len(refs)} reference meshes for {k} meshes")
     fields = panel_fields(meshes, colors, color, refs, curvature_area)
+    lines = PanelLines(meshes, feature_lines, feature_color, feature_width)
+    edge_rgb = to_rgb(edge_color) or EDGE_COLOR
     scalar = [f for f in fields if f.kind == "scalar"]
     diverging = bool(scalar) and all(f.diverging for f in scalar)
     if scalar:
@@ -207,9 +224,9 @@ def render_meshes(meshes: Sequence[Mesh], path: PathLike | None = None, *,
         win = Window(vtk, (w, view_h), transparent, msaa=max(m.n_faces for m in meshes) <= MSAA_MAX_FACES)
         for i, (mesh, field, cam) in enumerate(zip(meshes, fields, cams)):
             r, c = divmod(i, cols)
-            actor = make_actor(vtk, mesh, field, clim=clim, cmap=cmap, smooth=shadings[i] == "smooth",
-                               edges=edge_flags[i], edge_color=to_rgb(edge_color) or EDGE_COLOR, line_width=line_width)
-            img = win.draw(actor, cam)
+            shape = make_actor(vtk, mesh, field, clim=clim, cmap=cmap, smooth=shadings[i] == "smooth",
+                               edges=edge_flags[i], edge_color=edge_rgb, line_width=line_width)
+            img = win.draw([shape, *lines.actors(vtk, i)], cam)
             y0, x0 = r * h, c * w
             if labels:
                 canvas[y0:y0 + fs_band, x0:x0 + w] = label_band(w, fs_band, labels[i], transparent)

@@ -179,7 +179,24 @@ class Window:
         self.transparent = transparent
         self.size = size
 
-    def draw(self, actor, camera: Camera) -> np.ndarray:
+    def draw(self, actors, camera: Camera) -> np.ndarray:
+        """Render the actors (one, or a list drawn together) seen by ``camera``; the picture as an array.
+
+        With more than one actor (feature lines over a surface) VTK's process-wide coincident-topology
+        mode is polygon offset during this frame only, so that lines win the depth test against the
+        faces they lie on (:func:`.lines.line_actor`); the caller's mode is restored afterwards.
+        """
+        actors = list(actors) if isinstance(actors, (list, tuple)) else [actors]
+        mapper = self.vtk.vtkPolyDataMapper
+        mode = mapper.GetResolveCoincidentTopology()
+        if len(actors) > 1:
+            mapper.SetResolveCoincidentTopologyToPolygonOffset()
+        try:
+            return self._draw(actors, camera)
+        finally:
+            mapper.SetResolveCoincidentTopology(mode)
+
+    def _draw(self, actors: list, camera: Camera) -> np.ndarray:
         vtk = self.vtk
         ren = vtk.vtkRenderer()
         ren.SetBackground(*BACKGROUND)
@@ -191,7 +208,8 @@ class Window:
         kit = vtk.vtkLightKit()
         kit.AddLightsToRenderer(ren)
         ren.TwoSidedLightingOn()
-        ren.AddActor(actor)
+        for actor in actors:
+            ren.AddActor(actor)
         camera.apply(ren.GetActiveCamera())
         ren.ResetCameraClippingRange()
         self.win.AddRenderer(ren)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["VIEWS", "FRAMES", "FRONTS", "DEFAULT_FRONT", "frame", "VIEW_ANGLE", "MARGIN", "CLAY", "EDGE_COLOR",
-           "BACKGROUND", "MSAA_MAX_FACES"]
+           "FEATURE_COLOR", "BACKGROUND", "MSAA_MAX_FACES"]
 
 # The view convention is Blender's.  In Blender's frame (z up) a model faces -y, and the front view looks
 # at it along +y from -y; "right" looks from +x, "top" from +z (Blender's numpad 1, 3, 7; ctrl for the
@@ -51,5 +51,6 @@ VIEW_ANGLE = 20.0   # vertical field of view of the camera, degrees
 MARGIN = 0.04       # free border around the framed model, fraction of the panel
 CLAY = (0.80, 0.78, 0.74)
 EDGE_COLOR = (0.12, 0.12, 0.14)
+FEATURE_COLOR = (0.85, 0.22, 0.05)   # feature lines: an orange red, apart from the clay and the wireframe
 BACKGROUND = (1.0, 1.0, 1.0)
 MSAA_MAX_FACES = 300_000  # larger meshes: FXAA instead of 8x multisampling (speed)

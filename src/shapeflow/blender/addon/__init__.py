@@ -16,15 +16,17 @@ A Blender 4.2+ extension (see ``blender_manifest.toml``); ``shapeflow`` and
     ShapeFlow Brush — :class:`shapeflow.Brush`, modal (Drag Dot preview) or
     scripted with a list of stroke points.
 
-All are in the sidebar (N ▸ ShapeFlow) and in Object ▸ ShapeFlow.
+All are in the sidebar (N ▸ ShapeFlow) and in Object ▸ ShapeFlow.  Keep Sharp
+Edges (the object's marked edges and/or a feature angle, :mod:`.sharp`) is an
+option of each, and a setting of each object shown in the sidebar.
 """
 
 import bpy
 from bpy.app.handlers import persistent
 
-from . import bridge, brush_op, operators, panel
+from . import bridge, brush_op, operators, panel, sharp
 
-_CLASSES = (*operators.CLASSES, *brush_op.CLASSES, *panel.CLASSES)
+_CLASSES = (*sharp.CLASSES, *operators.CLASSES, *brush_op.CLASSES, *panel.CLASSES)
 
 
 @persistent
@@ -48,6 +50,7 @@ def _warm_import():
 def register():
     for cls in _CLASSES:
         bpy.utils.register_class(cls)
+    sharp.register()
     for menu, fn in panel.MENUS:
         menu.append(fn)
     bpy.app.handlers.load_post.append(_clear_caches)
@@ -60,6 +63,7 @@ def unregister():
         bpy.app.handlers.load_post.remove(_clear_caches)
     for menu, fn in reversed(panel.MENUS):
         menu.remove(fn)
+    sharp.unregister()
     for cls in reversed(_CLASSES):
         bpy.utils.unregister_class(cls)
     bridge.clear_caches()

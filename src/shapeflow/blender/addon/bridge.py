@@ -1,6 +1,7 @@
 """Blender mesh <-> shapeflow arrays, in bulk.
 
-Positions, faces, selection, UVs, material indices and smooth flags go through
+Positions, faces, selection, UVs, material indices, smooth flags and edge data
+(vertex pairs, ``sharp_edge`` flags, ``crease_edge`` values) go through
 ``foreach_get``/``foreach_set`` on whole arrays: no Python loop over vertices,
 corners or faces.  Where Blender 4.x stores the data as a generic attribute
 (``position``, ``.corner_vert``, ``.select_vert``, ``.hide_vert``) the
@@ -170,6 +171,74 @@ def bounding_diagonal(V) -> float:
 
 
 # --------------------------------------------------------------------------
+# edges: vertex pairs, sharp flags and creases
+# --------------------------------------------------------------------------
+
+def read_edges(me) -> np.ndarray:
+    """(E, 2) int64 vertex pairs of the mesh's edges, in Blender's edge order."""
+    ev = np.empty(2 * len(me.edges), dtype=np.int32)
+    a = _attribute(me, ".edge_verts", "EDGE", "INT32_2D")
+    if a is not None:
+        a.data.foreach_get("value", ev)
+    else:
+        me.edges.foreach_get("vertices", ev)
+    return ev.reshape(-1, 2).astype(np.int64)
+
+
+def read_edge_values(me, name, data_type) -> np.ndarray | None:
+    """The EDGE attribute ``name`` of that type ((E,) float64 or bool), or None where the mesh has none."""
+    a = _attribute(me, name, "EDGE", data_type)
+    if a is None:
+        return None
+    out = np.empty(len(me.edges), dtype=bool if data_type == "BOOLEAN" else np.float32)
+    a.data.foreach_get("value", out)
+    return out if data_type == "BOOLEAN" else out.astype(np.float64)
+
+
+def read_sharp_flags(me) -> np.ndarray:
+    """Edges marked Sharp (the boolean ``sharp_edge`` attribute), as an (E,) mask."""
+    v = read_edge_values(me, "sharp_edge", "BOOLEAN")
+    return np.zeros(len(me.edges), dtype=bool) if v is None else v
+
+
+def read_creases(me) -> np.ndarray:
+    """Edge creases in [0, 1] (the float ``crease_edge`` attribute), (E,); zeros where the mesh has none."""
+    v = read_edge_values(me, "crease_edge", "FLOAT")
+    return np.zeros(len(me.edges)) if v is None else np.clip(np.nan_to_num(v), 0.0, 1.0)
+
+
+def edge_rows(me, pairs) -> np.ndarray:
+    """Blender's edge index of each vertex pair (k, 2), either order; -1 where the mesh has no such edge."""
+    E = read_edges(me)
+    n = np.int64(max(len(me.vertices), 1))
+    key = np.minimum(E[:, 0], E[:, 1]) * n + np.maximum(E[:, 0], E[:, 1])
+    order = np.argsort(key, kind="stable")
+    p = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    want = np.minimum(p[:, 0], p[:, 1]) * n + np.maximum(p[:, 0], p[:, 1])
+    pos = np.minimum(np.searchsorted(key[order], want), max(key.size - 1, 0))
+    found = key[order][pos] == want if key.size else np.zeros(want.size, dtype=bool)
+    return np.where(found, order[pos] if key.size else -1, -1)
+
+
+def write_edge_values(me, name, data_type, pairs, values) -> None:
+    """Set the EDGE attribute ``name`` to ``values`` on the edges ``pairs`` (0 / False on every other
+    edge), creating it; nothing is created when no pair is given."""
+    rows = edge_rows(me, pairs) if len(pairs) else np.zeros(0, dtype=np.int64)
+    if rows.size == 0 and me.attributes.get(name) is None:
+        return
+    if (rows < 0).any():
+        raise ValueError(f"{int((rows < 0).sum())} of the {name} pairs are not edges of mesh '{me.name}'")
+    a = _attribute(me, name, "EDGE", data_type)
+    if a is None:
+        if me.attributes.get(name) is not None:
+            me.attributes.remove(me.attributes[name])
+        a = me.attributes.new(name, data_type, "EDGE")
+    out = np.zeros(len(me.edges), dtype=bool if data_type == "BOOLEAN" else np.float32)
+    out[rows] = values
+    a.data.foreach_set("value", out)
+
+
+# --------------------------------------------------------------------------
 # vertex groups
 # --------------------------------------------------------------------------
 
@@ -314,7 +383,20 @@ def new_mesh(name, V, sizes, corners):
         np.cumsum(sizes[:-1], out=starts[1:])
     me.polygons.foreach_set("loop_start", starts)  # face sizes follow from the offsets (Blender 4.0+)
     me.update(calc_edges=True)
+    drop_bad_edge_selection(me)
     return me
+
+
+def drop_bad_edge_selection(me) -> None:
+    """Remove an edge-selection layer of the wrong type.
+
+    Blender 5.0.1's ``update(calc_edges=True)`` (and ``from_pydata``) on a mesh without edges leaves
+    ``.select_edge`` typed like the edges' vertex pairs (INT32_2D); writing edge selection through
+    ``foreach_set`` then crashes Blender.  Without the layer Blender makes a proper one when needed.
+    """
+    a = me.attributes.get(".select_edge")
+    if a is not None and a.data_type != "BOOLEAN":
+        me.attributes.remove(a)
 
 
 # --------------------------------------------------------------------------
@@ -345,7 +427,7 @@ def flow_solver(mesh, weights, **options):
     import shapeflow as sf
 
     c = _solver_cache
-    key = (id(mesh.topology), tuple(sorted(options.items())))
+    key = (id(mesh.topology), tuple((k, _hashable(v)) for k, v in sorted(options.items())))
     w = None if weights is None else np.asarray(weights, dtype=np.float64)
     same_w = (w is None and c.get("w") is None) or (w is not None and c.get("w") is not None
                                                     and np.array_equal(c["w"], w))
@@ -356,3 +438,10 @@ def flow_solver(mesh, weights, **options):
     _solver_cache.update(key=key, topology=mesh.topology, V=np.array(mesh.vertices), w=None if w is None else w.copy(),
                          solver=solver)
     return solver
+
+
+def _hashable(value):
+    """An option as a comparable key (arrays, e.g. sharp edges, by their shape and bytes)."""
+    if isinstance(value, np.ndarray):
+        return (value.dtype.str, value.shape, value.tobytes())
+    return value

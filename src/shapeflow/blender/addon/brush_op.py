@@ -26,7 +26,9 @@ own ``sculpt.brush_stroke``.)
 applies the stroke through the given world-space points, dabbing every
 ``spacing × radius`` of arc length (``spacing=0``: exactly at the points):
 the same as ``shapeflow.Brush(mesh, lam=..., radius=...).stroke(points,
-spacing)`` in object space.
+spacing)`` in object space.  ``keep_sharp=True`` (with ``sharp_marked``,
+``sharp_by_angle``, ``sharp_angle``; :mod:`.sharp`) makes the dabs keep the
+sharp edges: a dab never drags a vertex across one.
 
 The interactive state lives in :class:`BrushSession` (no ``bpy`` events), so it
 can be driven and tested without a window.
@@ -39,7 +41,8 @@ import numpy as np
 from bpy.props import BoolProperty, CollectionProperty, EnumProperty, FloatProperty, FloatVectorProperty, StringProperty
 from bpy.types import Operator, PropertyGroup
 
-from . import bridge
+from . import bridge, sharp
+from .sharp import SharpOptions
 
 FALLOFF_ITEMS = [
     ("SMOOTH", "Smooth", "Weights fall off as (1 − t²)² towards the rim (t = distance / radius)"),
@@ -261,7 +264,7 @@ def _window_region(area):
     return None
 
 
-class OBJECT_OT_shapeflow_brush(Operator):
+class OBJECT_OT_shapeflow_brush(SharpOptions, Operator):
     """Sculpt with the shape-enhancement brush: dabs of the implicit flow restricted to a sphere
     under the mouse (λ < 0 enhances, > 0 smooths)"""
 
@@ -306,6 +309,7 @@ class OBJECT_OT_shapeflow_brush(Operator):
             row = col.row(align=True)
             row.prop_search(self, "vertex_group", ob, "vertex_groups")
             row.prop(self, "invert_weights", text="", icon="ARROW_LEFTRIGHT")
+        sharp.draw_options(layout, self)
 
     # --- building the library brush ----------------------------------------------------
     def make_brush(self, context, ob):
@@ -324,7 +328,8 @@ class OBJECT_OT_shapeflow_brush(Operator):
         scale = uniform_scale(_matrix(ob))
         return sf.Brush(mesh, lam=self.lam, radius=self.radius / scale,
                         falloff="smooth" if self.falloff == "SMOOTH" else None,
-                        lam_border=self.lam_border, weights=w, normalized=self.normalized)
+                        lam_border=self.lam_border, weights=w, normalized=self.normalized,
+                        **self.sharp_options(ob.data, mesh))
 
     # --- scripted / replay ----------------------------------------------------------------
     def execute(self, context):

@@ -11,7 +11,11 @@ Property names follow the keywords of :func:`shapeflow.flow`: ``lam``,
 that supplies ``weights``, and ``scheme`` picks ``compat``: ``'PAPER'`` (the
 paper's TQLBO flow, ``compat=None``) or ``'BLENDER'`` (``compat="blender"``,
 the exact result of Blender's own Laplacian Smooth modifier with
-``lambda_factor = lam``).
+``lambda_factor = lam``).  ``keep_sharp`` with ``sharp_marked`` /
+``sharp_by_angle`` + ``sharp_angle`` give ``sharp_edges`` / ``feature_angle``
+(:mod:`.sharp`).  Subdivide and Enhance subdivides with the object's edge
+creases (``use_creases``, as Blender's Subdivision Surface) and writes the
+sub-edges' creases and sharp flags onto the new mesh.
 """
 
 import time
@@ -29,7 +33,8 @@ from bpy.props import (
 )
 from bpy.types import Operator
 
-from . import bridge
+from . import bridge, sharp
+from .sharp import SharpOptions, face_edges
 
 SCHEME_ITEMS = [
     ("PAPER", "Paper", "The paper's flow with the hybrid quad/triangle Laplacian (TQLBO weights)"),
@@ -61,7 +66,7 @@ def _errors():
 # shared properties
 # --------------------------------------------------------------------------
 
-class FlowOptions:
+class FlowOptions(SharpOptions):
     """The flow() options shared by every operator (λ itself is per operator)."""
 
     def execute(self, context):
@@ -136,6 +141,7 @@ class FlowOptions:
         sub = col.column()
         sub.enabled = self.scheme == "PAPER"
         sub.prop(self, "update")
+        sharp.draw_options(layout, self)
 
 
 def _active_mesh(context):
@@ -208,7 +214,7 @@ class OBJECT_OT_shapeflow_flow(FlowOptions, Operator):
         w = self.weights(context, ob, mask)
         t1 = time.perf_counter()
         mesh = bridge.shapeflow_mesh(V, sizes, corners)
-        solver = bridge.flow_solver(mesh, w, **self.solver_options())
+        solver = bridge.flow_solver(mesh, w, **self.solver_options(), **self.sharp_options(me, mesh))
         out = solver.run(self.lam, **self.run_options())
         X = out.vertices
         if mask is not None:  # volume rescaling is global: keep the unselected part exactly in place
@@ -290,7 +296,8 @@ class OBJECT_OT_shapeflow_family(FlowOptions, Operator):
         mesh = bridge.shapeflow_mesh(V, sizes, corners)
         lams = np.linspace(self.lam_start, self.lam_end, self.count)
         opts = self.run_options()
-        shapes, report = sf.family(mesh, lams, weights=w, return_report=True, **self.solver_options(), **opts)
+        shapes, report = sf.family(mesh, lams, weights=w, return_report=True, **self.solver_options(),
+                                   **self.sharp_options(ob.data, mesh), **opts)
 
         # lay the members out along world X, right of the object's world bounding box
         mw = ob.matrix_world
@@ -392,6 +399,10 @@ class OBJECT_OT_shapeflow_subdivide_enhance(FlowOptions, Operator):
     boundary: EnumProperty(name="Boundary", items=BOUNDARY_ITEMS, default="SMOOTH")
     weights_rule: EnumProperty(name="Weights", items=WEIGHTS_RULE_ITEMS, default="SMOOTH",
                                description="How vertex-group weights are carried to the new vertices")
+    use_creases: BoolProperty(
+        name="Use Creases", default=True,
+        description="Subdivide with the object's edge creases, as the Subdivision Surface modifier's Use Creases; "
+                    "the new mesh carries the sub-edges' creases, so subdividing it again continues the surface")
     lam: FloatProperty(
         name="λ", default=-60.0, soft_min=-500.0, soft_max=500.0, step=100, precision=3,
         description="Flow factor on the subdivided mesh: < 0 enhances, > 0 smooths, 0 subdivides only")
@@ -407,6 +418,7 @@ class OBJECT_OT_shapeflow_subdivide_enhance(FlowOptions, Operator):
         col.prop(self, "levels")
         col.prop(self, "boundary")
         col.prop(self, "weights_rule")
+        col.prop(self, "use_creases")
         self.draw_flow_options(layout, _active_mesh(context))
 
     def _run(self, context):
@@ -427,14 +439,22 @@ class OBJECT_OT_shapeflow_subdivide_enhance(FlowOptions, Operator):
         groups = dict(zip(names, bridge.read_vertex_groups(context, ob, names)))
 
         coarse = sf.Mesh.from_csr(V, sizes, corners)
+        edges = bridge.read_edges(old)
+        creases = None
+        if self.use_creases:
+            pairs, values = face_edges(coarse, edges, bridge.read_creases(old))
+            if (values > 0).any():
+                creases = (pairs[values > 0], values[values > 0])
+        sharp = face_edges(coarse, edges[bridge.read_sharp_flags(old)])
         if self.vertex_group:
             coarse = coarse.with_weights(np.clip(groups[self.vertex_group], 0.0, 1.0))
-        fine = sf.subdivide(coarse, levels, boundary=boundary, weights_rule=rule)
+        fine = sf.subdivide(coarse, levels, boundary=boundary, weights_rule=rule, creases=creases)
         fine_groups = {}
         others = [nm for nm in names if nm != self.vertex_group]
         if others and levels > 0:
-            S, _ = sf.subdivision_matrix(coarse, levels=levels, boundary=boundary,
-                                         scheme="simple" if rule == "linear" else "catmull-clark")
+            scheme = "simple" if rule == "linear" else "catmull-clark"
+            S, _ = sf.subdivision_matrix(coarse, levels=levels, boundary=boundary, scheme=scheme,
+                                         creases=creases if scheme == "catmull-clark" else None)
             for nm in others:
                 fine_groups[nm] = np.clip(S @ groups[nm], 0.0, 1.0)
         elif others:
@@ -442,6 +462,15 @@ class OBJECT_OT_shapeflow_subdivide_enhance(FlowOptions, Operator):
         if self.vertex_group:
             fine_groups[self.vertex_group] = np.asarray(fine.weights)
 
+        # the new mesh, with the sub-edges' creases and sharp flags, is what Keep Sharp Edges reads
+        me = bridge.new_mesh(old.name, fine.vertices, fine.face_sizes, fine.face_indices)
+        self._carry(old, me, sizes, levels)
+        if creases is not None:
+            bridge.write_edge_values(me, "crease_edge", "FLOAT", *fine.creases)
+        if len(sharp):
+            halves = sf.subdivide(sf.Mesh.from_csr(V, sizes, corners), levels, boundary=boundary,
+                                  creases=(sharp, 1.0)).creases[0]   # an infinite crease's halves stay
+            bridge.write_edge_values(me, "sharp_edge", "BOOLEAN", halves, True)
         X = fine.vertices
         summary = "subdivided only (λ = 0)"
         if self.lam != 0.0 or self.lam_border != 0.0:
@@ -450,12 +479,12 @@ class OBJECT_OT_shapeflow_subdivide_enhance(FlowOptions, Operator):
                 w = fine_groups[self.vertex_group]
                 if self.invert_weights:
                     w = 1.0 - w
-            out = sf.flow(fine, self.lam, weights=w, **self.solver_options(), **self.run_options())
+            out = sf.flow(fine, self.lam, weights=w, **self.solver_options(), **self.run_options(),
+                          **self.sharp_options(me, fine))
             X = out.vertices
+            bridge.write_positions(me, X)
             summary = out.report.summary()
 
-        me = bridge.new_mesh(old.name, X, fine.face_sizes, fine.face_indices)
-        self._carry(old, me, sizes, levels)
         old_name = old.name
         ob.data = me
         for nm in names:  # vertex group names live on the mesh: recreate them in the old order
