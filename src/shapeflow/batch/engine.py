@@ -13,10 +13,10 @@ retries there); its workers must import shapeflow and see INPUTS and OUTDIR.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime
 import hashlib
 import itertools
-import dataclasses
 import os
 import shutil
 import time
