@@ -21,7 +21,7 @@ function showStatus() {
   const f = m.family;
   const fam = f.state === "running" ? `solving the family: ${f.done}/${f.total}` :
               f.state === "failed" ? `family failed: ${f.error}` :
-              m.stale ? "family: solved again when the slider moves" :
+              m.stale ? "family: solved anew when the slider moves" :
               f.state === "done" ? `family of ${m.lams.length} shapes ready` : "";
   $("status").textContent = `${studio.name ? studio.name + ": " : ""}${studio.n.toLocaleString()} vertices`
     + `${m.modified ? " · unsaved" : ""}\n${fam}`;

@@ -113,6 +113,16 @@ studio.toScreen = (p) => {
   const v = new THREE.Vector3(...p).project(camera), r = canvas.getBoundingClientRect();
   return [r.left + (v.x + 1) / 2 * r.width, r.top + (1 - v.y) / 2 * r.height];
 };
+// how many of the shown vertices lie outside the picture (tests: the frame holds the shape)
+studio.outside = () => {
+  const a = mesh.geometry.getAttribute("position").array, v = new THREE.Vector3();
+  let k = 0;
+  for (let i = 0; i < a.length; i += 3) {
+    v.set(a[i], a[i + 1], a[i + 2]).project(camera);
+    if (Math.abs(v.x) > 1 || Math.abs(v.y) > 1) k++;
+  }
+  return k;
+};
 // pixels on screen per unit of length at the depth of `point`
 export function pixelsPerUnit(point) {
   const d = camera.position.distanceTo(point);
