@@ -19,6 +19,7 @@ export function send(msg, answered = null) {
   answers.set(id, answered);
   studio.pending = answers.size;
   if (texts.sent) texts.sent(msg);
+  if (studio.log) studio.log.push(msg);           // what the page sent, when a test or a script asks
   ws.send(JSON.stringify({ ...msg, id }));
   return id;
 }

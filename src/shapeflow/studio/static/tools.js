@@ -58,7 +58,7 @@ function moveRings(x, y) {
   view.placeRing(ring, h.point, h.normal, radius());
   twin.visible = false;
   if ($("mirror").checked) view.placeRing(twin, view.mirrored(h.point), view.mirrored(h.normal, true), radius());
-  studio.ring = { visible: true, center: ring.position.toArray() };
+  studio.ring = { visible: true, center: ring.position.toArray(), twin: twin.visible ? twin.position.toArray() : null };
   // during a stroke the frame with the edit's answer shows the circle where it now is: a frame for
   // the circle alone would only hold that answer back (a software renderer takes ~100 ms a frame)
   if (!(stroke && waiting)) view.redraw();
