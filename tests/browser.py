@@ -109,3 +109,35 @@ def idle(d, server, timeout=120.0):
 def changed_pixels(a, b, threshold: int = 30) -> int:
     """How many pixels differ by more than ``threshold`` (sum over the channels) between two screenshots."""
     return int((np.abs(a - b).sum(axis=2) > threshold).sum())
+
+
+def spot_studio(size=(1100, 760)):
+    """Module fixtures ``server`` (the studio on the bundled Spot) and ``page`` (it in Chromium at ``size``):
+    ``server, page = spot_studio()`` in a test module."""
+    import pytest
+
+    import shapeflow as sf
+
+    @pytest.fixture(scope="module")
+    def server():
+        from shapeflow.studio import StudioServer
+
+        with StudioServer(sf.load_example("spot"), name="spot") as srv:
+            yield srv
+
+    @pytest.fixture(scope="module")
+    def page(server):
+        with chromium_page(server.url, size=size) as d:
+            yield d
+
+    return server, page
+
+
+def type_into(d, element_id: str, text: str, enter: bool = False):
+    """Click a box of the page, replace its text as a user would (Ctrl+A, typing), optionally Enter."""
+    from selenium.webdriver.common.keys import Keys
+
+    box = d.find_element("id", element_id)
+    box.click()
+    box.send_keys(Keys.CONTROL, "a")
+    box.send_keys(str(text), *([Keys.ENTER] if enter else []))

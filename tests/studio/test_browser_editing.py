@@ -17,13 +17,14 @@ from browser import (  # noqa: E402
     CHROMIUM,
     DRIVER,
     changed_pixels,
-    chromium_page,
     confirm,
     idle,
     pixels,
     press,
     shown,
+    spot_studio,
     stroke,
+    type_into,
     wait,
 )
 from selenium.webdriver.common.keys import Keys  # noqa: E402
@@ -34,26 +35,12 @@ from shapeflow.studio.headless import set_control  # noqa: E402
 pytestmark = pytest.mark.skipif(not (CHROMIUM and DRIVER), reason="chromium and chromedriver are not installed")
 
 
-@pytest.fixture(scope="module")
-def server():
-    from shapeflow.studio import StudioServer
-
-    with StudioServer(sf.load_example("spot"), name="spot") as srv:
-        yield srv
-
-
-@pytest.fixture(scope="module")
-def page(server):
-    with chromium_page(server.url, size=(1100, 760)) as d:
-        yield d
+server, page = spot_studio((1100, 760))
 
 
 def type_lam(d, value):
     """Type λ into the number box and press Enter, then wait for the preview."""
-    box = d.find_element("id", "lam-num")
-    box.click()
-    box.send_keys(Keys.CONTROL, "a")
-    box.send_keys(str(value), Keys.ENTER)
+    type_into(d, "lam-num", value, enter=True)
     wait(d, f"return window.studio.lam === {value} && window.studio.pending === 0 && window.studio.previewing")
 
 
@@ -78,15 +65,8 @@ def undo_to_start(d, server, start):
         idle(d, server)
     assert np.array_equal(server.session.vertices, start) and np.all(server.session.weights == 1.0)
     if d.execute_script("return window.studio.lam") != 0:
-        type_lam_zero(d)
-
-
-def type_lam_zero(d):
-    box = d.find_element("id", "lam-num")
-    box.click()
-    box.send_keys(Keys.CONTROL, "a")
-    box.send_keys("0", Keys.ENTER)
-    wait(d, "return window.studio.lam === 0 && window.studio.pending === 0")
+        type_into(d, "lam-num", 0, enter=True)
+        wait(d, "return window.studio.lam === 0 && window.studio.pending === 0")
 
 
 def test_an_inflate_stroke_at_a_previewed_lambda_acts_on_what_is_shown(page, server):

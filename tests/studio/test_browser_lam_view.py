@@ -17,7 +17,19 @@ import shapeflow as sf
 
 need("aiohttp", "aiohttp (the 'studio' extra)")
 need("selenium.webdriver", "selenium (a test dependency)")
-from browser import CHROMIUM, DRIVER, canvas_box, chromium_page, idle, pixels, press, settled, shown, wait  # noqa: E402
+from browser import (  # noqa: E402
+    CHROMIUM,
+    DRIVER,
+    canvas_box,
+    idle,
+    pixels,
+    press,
+    settled,
+    shown,
+    spot_studio,
+    type_into,
+    wait,
+)
 from selenium.webdriver.common.action_chains import ActionChains  # noqa: E402
 from selenium.webdriver.common.actions.wheel_input import ScrollOrigin  # noqa: E402
 from selenium.webdriver.common.keys import Keys  # noqa: E402
@@ -27,18 +39,7 @@ from shapeflow.studio.headless import set_control  # noqa: E402
 pytestmark = pytest.mark.skipif(not (CHROMIUM and DRIVER), reason="chromium and chromedriver are not installed")
 
 
-@pytest.fixture(scope="module")
-def server():
-    from shapeflow.studio import StudioServer
-
-    with StudioServer(sf.load_example("spot"), name="spot") as srv:
-        yield srv
-
-
-@pytest.fixture(scope="module")
-def page(server):
-    with chromium_page(server.url, size=(1100, 760)) as d:
-        yield d
+server, page = spot_studio((1100, 760))
 
 
 def box(d, element_id):
@@ -81,16 +82,11 @@ def test_the_label_keeps_its_place_and_the_typed_value_follows_the_slider(page, 
     assert len({str(b) for b in boxes.values()}) == 1, boxes                      # nothing moved or wrapped
     assert boxes[0][1][3] < 20                                                     # one line
     assert labels[-240] == "−240 enhance" and labels[60] == "+60 smooth" and labels[0] == "0 · as is"
-    num = page.find_element("id", "lam-num")                                       # and the slider the number
-    num.click()
-    num.send_keys(Keys.CONTROL, "a")
-    num.send_keys("-171", Keys.ENTER)
+    type_into(page, "lam-num", -171, enter=True)                                   # and the slider the number
     wait(page, "return window.studio.pending === 0 && window.studio.lam === -171")
     assert page.execute_script("return document.getElementById('lam').value") == "-171"
     np.testing.assert_array_equal(shown(page), server.session.shape_at(-171.0).astype(np.float32))
-    num.click()
-    num.send_keys(Keys.CONTROL, "a")
-    num.send_keys("-900", Keys.ENTER)                                              # outside: the end, and why
+    type_into(page, "lam-num", -900, enter=True)                                   # outside: the end, and why
     wait(page, "return window.studio.pending === 0 && window.studio.lam === -240")
     assert "outside the family" in page.find_element("id", "error").text
     set_control(page, "lam", 0, event="input")
@@ -100,22 +96,14 @@ def test_the_label_keeps_its_place_and_the_typed_value_follows_the_slider(page, 
 def test_the_family_range_is_edited_from_the_page(page, server):
     idle(page, server)
     for eid, value in (("fam-from", "20"), ("fam-to", "-60"), ("fam-step", "-20")):
-        el = page.find_element("id", eid)
-        el.click()
-        el.send_keys(Keys.CONTROL, "a")
-        el.send_keys(value)
+        type_into(page, eid, value)
     page.find_element("id", "fam-solve").click()
     wait(page, "return window.studio.pending === 0 && window.studio.family.state === 'done' && "
                "window.studio.lams.length === 5")
     assert server.session.family_status().lams == [-60.0, -40.0, -20.0, 0.0, 20.0]
     assert page.execute_script("const s = document.getElementById('lam'); return [s.min, s.max]") == ["-60", "20"]
-    page.find_element("id", "fam-from").click()                                    # back to the default
-    for eid, value in (("fam-from", "60"), ("fam-to", "-240"), ("fam-step", "-10")):
-        el = page.find_element("id", eid)
-        el.click()
-        el.send_keys(Keys.CONTROL, "a")
-        el.send_keys(value)
-    page.find_element("id", "fam-step").send_keys(Keys.ENTER)
+    for eid, value in (("fam-from", "60"), ("fam-to", "-240"), ("fam-step", "-10")):   # back to the default
+        type_into(page, eid, value, enter=eid == "fam-step")
     wait(page, "return window.studio.pending === 0 && window.studio.family.state === 'done' && "
                "window.studio.lams.length === 31")
 

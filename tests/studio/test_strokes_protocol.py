@@ -17,6 +17,7 @@ import shapeflow as sf
 pytest.importorskip("aiohttp", reason="aiohttp (the 'studio' extra) is not installed")
 
 import aiohttp  # noqa: E402
+from test_hostile_clients import ws_url  # noqa: E402
 
 from shapeflow.studio import StudioServer  # noqa: E402
 
@@ -26,10 +27,6 @@ def server():
     with StudioServer(sf.load_example("spot"), lams=[0.0, -20.0, -40.0]) as srv:
         srv.session.wait_family(120)
         yield srv
-
-
-def ws_url(srv):
-    return srv.address.replace("http", "ws") + f"ws?token={srv.token}"
 
 
 async def answer(ws, rid):

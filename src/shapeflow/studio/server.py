@@ -13,15 +13,20 @@ page's cookie).  docs/robustness.md states the threat model.
 
 Protocol.  The page sends JSON messages, checked against the table of
 :mod:`~shapeflow.studio.protocol` before anything changes; a refused message is answered by an
-``error`` message and the socket stays open.  The server sends JSON text messages
-(``{"type": ...}``: ``mesh``, ``state``, ``field``, ``error``) and binary frames that start with
+``error`` message and the socket stays open; each request is answered to its tab by a ``done``
+(or that ``error``) message carrying the request's ``id``.  The server sends JSON text messages
+(``{"type": ...}``: ``mesh``, ``state``, ``field``, ``done``, ``error``) and binary frames that start with
 a 4-byte tag: ``POS0`` float32 positions (n, 3), ``BAS0`` float32 positions of the input (the
 split view's "before"), ``TRI0`` uint32 triangles (the faces' fans, for drawing), ``EDG0``
 uint32 edge pairs (the real polygon edges, for the wireframe), ``WGT0`` float32 weights (n,),
 ``FLD0`` float32 values of a colour field (n,), ``PSUB`` some positions (uint32 count k, k
 uint32 indices, k × 3 float32: what a dab moved).  No frame holds a value that is not finite in
 float32.  A ``mesh`` message starts a new mesh (on connecting, and in every tab when a file is
-opened).  Each tab has its own bounded queue (:mod:`~shapeflow.studio.outbox`).
+opened).  Each tab has its own bounded queue (:mod:`~shapeflow.studio.outbox`).  What the
+messages do, and the editing model, is :mod:`~shapeflow.studio.hub`'s.
+
+``GET /`` is the page, with an import map that gives every script's address with the token the
+page was opened with (a page in another site's frame, e.g. a notebook's, gets no cookie).
 
 ``GET /download/NAME.EXT`` returns the current mesh, on the layout of the file opened, in any
 format shapeflow writes; ``POST /open?name=FILE.EXT`` (the file as the body) opens a mesh in

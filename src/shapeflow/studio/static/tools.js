@@ -19,7 +19,7 @@ const strength = () => Number($("strength").value);
 export function showRadius() { $("radius-value").textContent = radius().toPrecision(3); }
 export function showStrength() {
   const s = strength(), t = tool();
-  strengths[t] = s;
+  if (t in strengths) strengths[t] = s;
   $("strength-value").textContent = t === "sculpt" ? `${s.toFixed(2)} (λ ${brushLam(s)})` : s.toFixed(2);
 }
 export function setRadius(r) {
