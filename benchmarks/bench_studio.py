@@ -6,8 +6,10 @@ Spot subdivided ``--levels`` times (2: 46,850 vertices) in ``shapeflow studio``,
 Chromium (Debian's chromium and chromium-driver; WebGL on SwiftShader, the CPU renderer, so the
 frame times are an upper bound of a machine with a GPU).  Dab latency: from the pointer event of a
 drag over the model (the enhancement brush, radius 5% of the model's size) to the end of the first
-frame drawn with the server's answer (``gl.finish()``), per dab; drags alternate between the
-page's default (frames drawn on demand) and ``?continuous=1`` (every frame drawn).  Scrubbing: the λ slider moved to
+frame drawn with the server's answer (``gl.finish()``), per dab sent at its pointer event (a move
+while a dab is in flight waits and is sent when the answer arrives: reported apart); each drag is
+one stroke (one undo step); drags alternate between the page's default (frames drawn on demand)
+and ``?continuous=1`` (every frame drawn).  Scrubbing: the λ slider moved to
 the next member at every animation frame for 3 s; frames drawn and position updates received per
 second.
 """
@@ -42,22 +44,48 @@ SCRUB = """
     requestAnimationFrame(step);"""
 
 
-def dabs(d, n: int, size: float) -> list:
-    """A drag of ``n`` dabs of the enhancement brush over the model; the latencies the page measured."""
+def across(d, V: np.ndarray, n: int) -> list:
+    """``n`` screen offsets (from the canvas's centre) of a horizontal drag over the model as the page
+    shows it: in each of ``n`` slices across the view at the model's mid-height, the point nearest
+    the camera, projected with the page's camera."""
+    view = d.execute_script("return window.studio.views().front")
+    cam = np.array(d.execute_script("return window.studio.cameraPosition()"))
+    up, right = np.array(view["up"]), np.cross(view["up"], view["dir"])
+    q = V - 0.5 * (V.min(axis=0) + V.max(axis=0))
+    size = float(np.ptp(q @ right))
+    band = np.abs(q @ up) < 0.03 * size
+    out = []
+    for x in np.linspace(-0.12 * size, 0.12 * size, n):
+        sl = np.flatnonzero(band & (np.abs(q @ right - x) < 0.02 * size))
+        p = V[sl[np.argmin(np.linalg.norm(V[sl] - cam, axis=1))]]
+        sx, sy = d.execute_script(f"return window.studio.toScreen({p.tolist()})")
+        r = d.execute_script("const r = document.querySelector('#view canvas').getBoundingClientRect();"
+                             "return [r.left + r.width / 2, r.top + r.height / 2];")
+        out.append((int(round(sx - r[0])), int(round(sy - r[1]))))
+    return out
+
+
+def dabs(d, V: np.ndarray, n: int, size: float) -> tuple:
+    """A drag of ``n`` pointer moves with the enhancement brush over the model (one stroke); the
+    latencies the page measured (dabs sent at their pointer event, and moves that waited)."""
     from selenium.webdriver.common.action_chains import ActionChains
 
     from shapeflow.studio.headless import wait
 
-    d.execute_script(f"window.studio.latencies = []; document.getElementById('mode').value = 'sculpt';"
+    d.execute_script(f"window.studio.latencies = []; window.studio.queuedLatencies = [];"
+                     f"document.getElementById('mode').value = 'sculpt';"
+                     f"document.getElementById('mode').dispatchEvent(new Event('change'));"
                      f"const r = document.getElementById('radius'); r.value = {0.05 * size};")
     canvas = d.find_element("css selector", "#view canvas")
-    chain = ActionChains(d).move_to_element_with_offset(canvas, -120, 20).click_and_hold()
-    for k in range(n):
-        chain = chain.move_to_element_with_offset(canvas, -120 + 6 * k, 20 - (k % 5)).pause(0.08)
+    path = across(d, V, n)
+    chain = ActionChains(d).move_to_element_with_offset(canvas, *path[0]).click_and_hold()
+    for p in path[1:]:
+        chain = chain.move_to_element_with_offset(canvas, *p).pause(0.08)
     chain.release().perform()
-    wait(d, "return window.studio.pending === 0 && window.studio.awaitingFrame === null")
+    wait(d, "return window.studio.pending === 0 && window.studio.awaitingFrame === null && !window.studio.stroking")
     d.execute_script("document.getElementById('mode').value = 'view';")
-    return list(d.execute_script("return window.studio.latencies"))
+    return (list(d.execute_script("return window.studio.latencies")),
+            list(d.execute_script("return window.studio.queuedLatencies")))
 
 
 def main() -> int:
@@ -76,6 +104,7 @@ def main() -> int:
     mesh = sf.subdivide(sf.load_example("spot"), a.levels)
     size = float(np.linalg.norm(np.ptp(mesh.vertices, axis=0)))
     lat = {"": [], "?continuous=1": []}
+    queued = {"": [], "?continuous=1": []}
     with StudioServer(mesh) as srv, chromium_page("about:blank", size=(1200, 800), ready=None) as d:
         t0 = time.monotonic()
         d.get(srv.url)
@@ -86,10 +115,12 @@ def main() -> int:
         for r in range(a.rounds):                     # on demand and continuous drawing, interleaved
             for mode in lat:
                 if r or mode:
-                    d.get(srv.url + mode)
+                    d.get(srv.link("", continuous=1) if mode else srv.url)     # the token kept
                     wait(d, "return window.studio && window.studio.ready && window.studio.family.state === 'done'",
                          300)
-                lat[mode] += dabs(d, a.dabs, size)
+                now, later = dabs(d, srv.session.vertices, a.dabs, size)
+                lat[mode] += now
+                queued[mode] += later
         # drawing every frame (the last page): the frame rate is the cost of one frame
         idle = d.execute_async_script("""
             const done = arguments[0], f0 = window.studio.frames, t0 = performance.now();
@@ -126,7 +157,11 @@ def main() -> int:
         if lat[mode]:
             q = np.percentile(lat[mode], [50, 95])
             print(f"dab latency, pointer event to drawn frame, {what}: median {q[0]:.0f} ms, 95th percentile "
-                  f"{q[1]:.0f} ms ({len(lat[mode])} dabs; target 50 ms)")
+                  f"{q[1]:.0f} ms ({len(lat[mode])} dabs sent at their pointer event; target 50 ms)")
+        if queued[mode]:
+            q = np.percentile(queued[mode], [50, 95])
+            print(f"  pointer moves that waited for a dab in flight ({len(queued[mode])}, sent when it was answered): "
+                  f"median {q[0]:.0f} ms, 95th percentile {q[1]:.0f} ms from the move to its frame")
     if lat[""] and lat["?continuous=1"]:
         print(f"  on demand / continuous: {np.median(lat['']) / np.median(lat['?continuous=1']):.2f}")
     print(f"drawing every frame: {idle:.1f} frames/s ({1000 / max(idle, 1e-9):.0f} ms a frame)")

@@ -32,6 +32,7 @@ _LAZY = {
     "family": "flow", "family_meshes": "flow",
     "render": "rendering", "render_meshes": "rendering",
     "Brush": "sculpt", "InflateBrush": "sculpt",
+    "studio": "studio",
 }
 
 

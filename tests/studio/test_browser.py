@@ -122,7 +122,7 @@ def test_colour_fields_and_the_brush_circle(page, server):
     wait(page, "return window.studio.field && window.studio.field.name === 'curvature' && window.studio.pending === 0")
     values = np.array(page.execute_script("return Array.from(window.studio.field.values)"), np.float32)
     np.testing.assert_array_equal(values, server.session.field("curvature").astype(np.float32))
-    assert page.execute_script("return document.getElementById('legend').style.display") == "block"
+    assert page.execute_script("return document.getElementById('legend').style.visibility") == "visible"
     ref = sf.mean_curvature(server.session.mesh, area="barycentric")     # the library's own curvature
     np.testing.assert_allclose(values, ref, rtol=1e-6, atol=1e-6 * np.abs(ref).max())
     page.execute_script("document.getElementById('mode').value = 'sculpt';")

@@ -21,7 +21,7 @@ import shapeflow as sf
 
 need("aiohttp", "aiohttp (the 'studio' extra)")
 need("selenium.webdriver", "selenium (a test dependency)")
-from browser import CHROMIUM, DRIVER, chromium_page, pixels, settled, shown, wait  # noqa: E402
+from browser import CHROMIUM, DRIVER, chromium_page, confirm, pixels, settled, shown, wait  # noqa: E402
 
 from shapeflow.studio.headless import set_control  # noqa: E402
 
@@ -112,6 +112,9 @@ def test_a_fast_slider_ends_on_its_last_value(page, server):
     np.testing.assert_array_equal(shown(page), server.session.shape_at(-75.0).astype(np.float32))
     slide(page, 0)
     wait(page, "return window.studio.pending === 0")
+    page.execute_script("window.studio.send({op: 'undo'});")          # the input again, for the split view
+    wait(page, "return window.studio.pending === 0")
+    np.testing.assert_array_equal(server.session.vertices, server.session.input_vertices)
 
 
 def test_split_view_shows_the_input_left_of_the_divider_and_the_turntable_turns(page, server):
@@ -124,9 +127,14 @@ def test_split_view_shows_the_input_left_of_the_divider_and_the_turntable_turns(
         wait(page, f"return window.studio.frames > {frames}")
         return np.abs(pixels(page) - background).sum(axis=2) > 12
 
+    slide(page, -80)                                                 # after the undo above: solved again, and
+    wait(page, "return window.studio.pending === 0 && window.studio.previewing")     # the preview follows
+    settled(page, server)                                            # (the camera backs off if it outgrew
+    slide(page, 0)                                                   # the frame: both pictures after that)
+    wait(page, "return window.studio.pending === 0")
     before = silhouette()
     slide(page, -80)
-    wait(page, "return window.studio.pending === 0")
+    wait(page, "return window.studio.pending === 0 && window.studio.previewing")
     after = silhouette()
     set_control(page, "split", checked=True)
     split = silhouette()
@@ -186,7 +194,9 @@ def test_oversized_and_unknown_uploads_are_refused(page, server, tmp_path):
     assert big.stat().st_size > LIMIT
     n = server.session.mesh.n_vertices
     page.execute_script("window.studio.error = null;")
+    assert server.session.modified                                     # the weights loaded above
     page.find_element("id", "open-file").send_keys(str(big))
+    assert "unsaved changes" in confirm(page)                          # asked first
     wait(page, "return window.studio.error !== null")
     assert "larger than the studio accepts" in page.execute_script("return window.studio.error")
     with pytest.raises(urllib.error.HTTPError) as exc:
@@ -206,6 +216,7 @@ def test_open_a_file_from_the_dialog(page, server, tmp_path):
     path = tmp_path / "cubes.obj"
     sf.save(path, mesh)
     page.find_element("id", "open-file").send_keys(str(path))
+    confirm(page)                                                       # still unsaved: asked again
     wait(page, "return window.studio.name === 'cubes.obj' && window.studio.ready && "
                "window.studio.family.state === 'done'")
     settled(page, server)

@@ -81,6 +81,16 @@ HOSTILE = [
     ('{"op": "solve", "lams": ' + json.dumps([0.0] * 1001) + "}", "lams"),
     ('{"op": "solve", "lams": [0, "x"]}', "lams[1]"),
     ('{"op": "field", "name": "__class__"}', "name"),
+    ('{"op": "begin", "tool": "rm"}', "unknown field"),
+    ('{"op": "dab", "center": [0, 0, 0], "radius": 0.1, "inflate": true, "strength": 5}', "strength"),
+    ('{"op": "paint", "center": [0, 0, 0], "radius": 0.1, "mirror": 1}', "true or false"),
+    ('{"op": "solve", "from": 0, "to": -10, "step": 0}', "step"),
+    ('{"op": "solve", "from": 0, "to": -10, "step": 5}', "gives no"),
+    ('{"op": "solve", "from": 0, "to": -1000000, "step": -0.001}', "more than"),
+    ('{"op": "solve", "lams": [0], "from": 0, "to": -10, "step": -1}', "not both"),
+    ('{"op": "solve", "from": 0}', "from, to and step"),
+    ('{"op": "lam", "value": 0, "id": -1}', "id"),
+    ('{"op": "lam", "value": 0, "id": 1.5}', "id"),
 ]
 
 

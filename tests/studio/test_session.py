@@ -92,17 +92,22 @@ def test_a_new_solve_supersedes_and_failures_are_reported(mesh):
     assert st.state == "failed" and "strategy" in st.error
 
 
-def test_history_length_files_and_threads(mesh, tmp_path):
-    s = StudioSession(mesh, undo_steps=2)
-    for k in range(4):
-        s.paint(mesh.vertices[k * 7], 0.5, value=0.0)
+def test_history_is_bounded_in_bytes_files_and_threads(mesh, tmp_path):
+    centres = [mesh.vertices[k * 7] for k in range(4)]
+    inside = [np.flatnonzero(np.linalg.norm(mesh.vertices - c, axis=1) < 0.5) for c in centres]
+    # a paint step keeps its indices (int64) and the weights before and after (float64); no positions
+    sizes = [24 * len(i) for i in inside]
+    s = StudioSession(mesh, history_bytes=sizes[2] + sizes[3])
+    for c in centres:
+        s.paint(c, 0.5, value=0.0)
+    assert s.history_bytes == (sizes[2] + sizes[3], sizes[2] + sizes[3])     # the two oldest were dropped
     assert s.undo() and s.undo() and not s.undo()
     s.paint(mesh.vertices[3], 0.5, value=0.5)
     s.save(tmp_path / "painted.ply")
     back = StudioSession.open(tmp_path / "painted.ply")
     np.testing.assert_array_equal(back.weights, s.weights)
-    # several threads painting at once: every stroke lands, each as one step
-    t = StudioSession(mesh, undo_steps=100)
+    # several threads painting at once: every paint lands, each as one step
+    t = StudioSession(mesh)
     threads = [threading.Thread(target=lambda k=k: [t.paint(mesh.vertices[(k * 13 + j) % mesh.n_vertices], 0.3,
                                                              value=0.0) for j in range(5)]) for k in range(4)]
     for th in threads:
@@ -114,6 +119,105 @@ def test_history_length_files_and_threads(mesh, tmp_path):
     while t.undo():
         undone += 1
     assert undone == 20 and np.array_equal(t.weights, np.ones(mesh.n_vertices))
+
+
+def test_a_stroke_is_one_step_holding_the_union_of_its_dabs(mesh):
+    s = StudioSession(mesh)
+    path = [mesh.vertices[5] + t * (mesh.vertices[40] - mesh.vertices[5]) for t in np.linspace(0.0, 1.0, 6)]
+    ref = sf.Brush(mesh, radius=0.5, lam=-30.0)             # the same dabs on the library's brush
+    s.begin_stroke()
+    moved = [s.dab(c, radius=0.5, lam=-30.0) for c in path]
+    for c in path:
+        ref.dab(c)
+    assert s.in_stroke and s.can_undo and s.modified
+    assert s.end_stroke() and not s.in_stroke and not s.end_stroke()
+    np.testing.assert_array_equal(s.vertices, ref.vertices)
+    union = np.unique(np.concatenate(moved))
+    assert len(union) > max(len(m) for m in moved)           # the dabs touched different vertices
+    # one step: the union's indices (int64) and positions before and after (float64 × 3); no weights
+    assert s.history_bytes[0] == len(union) * (8 + 24 + 24)
+    after = s.vertices
+    assert s.undo() and np.array_equal(s.vertices, mesh.vertices) and not s.can_undo    # the first 'before'
+    assert s.redo() and np.array_equal(s.vertices, after)                               # the last 'after'
+
+
+def test_a_dangling_stroke_ends_at_the_next_other_edit(mesh):
+    s = StudioSession(mesh)
+    s.begin_stroke()
+    s.dab(mesh.vertices[5], radius=0.5, lam=-30.0)
+    s.paint(mesh.vertices[9], 0.4, value=0.0)
+    stroked_V, stroked_w = s.vertices, s.weights
+    s.set_weights(np.full(mesh.n_vertices, 0.5))              # not a stroke's edit: the stroke ends first
+    assert not s.in_stroke
+    assert s.undo() and np.array_equal(s.weights, stroked_w) and np.array_equal(s.vertices, stroked_V)
+    assert s.undo() and np.array_equal(s.vertices, mesh.vertices) and np.all(s.weights == 1.0)
+    assert not s.undo()
+    s.begin_stroke()                                          # undo ends an open stroke as well
+    s.dab(mesh.vertices[5], radius=0.5, lam=-30.0)
+    assert s.undo() and np.array_equal(s.vertices, mesh.vertices) and not s.in_stroke
+
+
+def test_modified_counts_from_the_state_saved(mesh):
+    s = StudioSession(mesh)
+    assert not s.modified
+    s.paint(mesh.vertices[0], 0.5, value=0.0)
+    assert s.modified
+    assert s.undo() and not s.modified                        # back to the state as opened
+    assert s.redo() and s.modified
+    saved, mark = s.saved_mesh()
+    s.mark_saved(mark)
+    assert not s.modified and np.array_equal(saved.weights, s.weights)
+    assert s.undo() and s.modified and s.redo() and not s.modified
+    s.paint(mesh.vertices[9], 0.5, value=0.0)
+    assert s.modified
+    one = 24 * int((np.linalg.norm(mesh.vertices - mesh.vertices[9], axis=1) < 0.5).sum())
+    t = StudioSession(mesh, history_bytes=one)               # room for one step: the state as opened is lost
+    t.paint(mesh.vertices[0], 0.5, value=0.0)
+    t.paint(mesh.vertices[9], 0.5, value=0.0)
+    assert t.undo() and not t.undo() and t.modified           # it is not the state as opened
+
+
+def test_mirrored_dabs_follow_the_view_rule_and_are_one_step():
+    spot = sf.load_example("spot")                            # faces -z, y up: the side axis is x
+    s = StudioSession(spot)
+    lo, hi = spot.vertices.min(axis=0), spot.vertices.max(axis=0)
+    cx = 0.5 * (lo[0] + hi[0])
+    np.testing.assert_allclose(s.mirrored([cx + 0.3, 0.1, 0.2]), [cx - 0.3, 0.1, 0.2], atol=1e-15)
+    turned = sf.Mesh.from_csr(spot.vertices, spot.face_sizes, spot.face_indices, metadata={"front": "+x"})
+    t = StudioSession(turned)                                 # faces +x: the side axis is z
+    cz = 0.5 * (lo[2] + hi[2])
+    np.testing.assert_allclose(t.mirrored([0.1, 0.2, cz + 0.25]), [0.1, 0.2, cz - 0.25], atol=1e-15)
+    c = spot.vertices[np.argmax(spot.vertices[:, 0])]          # far from the plane
+    m = c * [-1.0, 1.0, 1.0] + [2 * cx, 0.0, 0.0]
+    ref = sf.Brush(spot, radius=0.2, lam=-40.0)
+    ref.dab(c)
+    ref.dab(m)
+    s.dab(c, radius=0.2, lam=-40.0, mirror=True)
+    np.testing.assert_array_equal(s.vertices, ref.vertices)
+    assert s.undo() and np.array_equal(s.vertices, spot.vertices) and not s.can_undo
+    on_plane = spot.vertices[np.argmin(np.abs(spot.vertices[:, 0] - cx) + 10 * (spot.vertices[:, 1] < 0.2))]
+    single = sf.Brush(spot, radius=0.2, lam=-40.0)
+    single.dab(on_plane)
+    s.dab(on_plane, radius=0.2, lam=-40.0, mirror=True)       # on the plane: one dab, not two
+    np.testing.assert_array_equal(s.vertices, single.vertices)
+    u = StudioSession(spot)
+    touched = u.paint(c, 0.2, value=0.0, mirror=True)
+    d = np.minimum(np.linalg.norm(spot.vertices - c, axis=1), np.linalg.norm(spot.vertices - m, axis=1))
+    assert set(touched.tolist()) == set(np.flatnonzero(d < 0.2).tolist())
+    assert u.undo() and np.all(u.weights == 1.0) and not u.can_undo
+
+
+def test_paint_measures_on_the_positions_given_and_previews_survive_weights(mesh):
+    s = StudioSession(mesh)
+    s.solve_family([0.0, -30.0], wait=True)
+    assert s.can_preview
+    shown = s.shape_at(-30.0)
+    c = shown[12]
+    touched = s.paint(c, 0.3, value=0.0, on=shown)
+    assert set(touched.tolist()) == set(np.flatnonzero(np.linalg.norm(shown - c, axis=1) < 0.3).tolist())
+    assert s.can_preview                                      # the positions did not change
+    s.dab(mesh.vertices[5], radius=0.5, lam=-30.0)
+    assert not s.can_preview                                  # they did
 
 
 def test_colour_fields_on_a_sphere():

@@ -9,9 +9,10 @@ def register(sub) -> None:
     p = sub.add_parser(
         "studio", help="enhance, paint weights and sculpt in a web browser (needs shapeflow[studio])",
         description="Start ShapeFlow Studio on MESH (default example:spot) and open it in the browser: a λ slider "
-                    "that walks a family of shapes, weight painting, the enhancement and inflate brushes, undo, "
-                    "download in every format.  Serves on 127.0.0.1 only unless --host says otherwise; every "
-                    "request needs the token in the printed address (?token=...); Ctrl-C ends it.")
+                    "that walks a family of shapes from smoothing to enhancement, weight painting, the enhancement "
+                    "and inflate brushes with X symmetry, a stroke per undo step (Ctrl+Z), download in every "
+                    "format; '?' on the page lists the keys.  Serves on 127.0.0.1 only unless --host says "
+                    "otherwise; every request needs the token in the printed address (?token=...); Ctrl-C ends it.")
     p.add_argument("mesh", nargs="?", default="example:spot", metavar="MESH",
                    help="a mesh file or example:NAME (default example:spot)")
     p.add_argument("--port", type=int, default=8765, help="port (default 8765; 0 picks a free one)")

@@ -30,8 +30,9 @@ def chromium() -> tuple[str | None, str | None]:
 
 @contextmanager
 def chromium_page(url: str, *, size=(1100, 760), ready: str | None = READY, timeout: float = 120.0):
-    """A headless Chromium (a selenium driver) showing ``url``; with ``ready``, once that script
-    returns true.  The browser ends with the block."""
+    """A headless Chromium (a selenium driver) showing ``url`` in a page of ``size`` CSS pixels (the
+    viewport: ``innerWidth`` × ``innerHeight``); with ``ready``, once that script returns true.  The
+    browser ends with the block."""
     try:
         from selenium import webdriver
         from selenium.webdriver.chrome.options import Options
@@ -49,6 +50,9 @@ def chromium_page(url: str, *, size=(1100, 760), ready: str | None = READY, time
     opts.binary_location = binary
     d = webdriver.Chrome(service=Service(driver), options=opts)
     try:
+        # the page's own size (the window's, less the browser's frame, would be smaller): size exactly
+        d.execute_cdp_cmd("Emulation.setDeviceMetricsOverride", {"width": int(size[0]), "height": int(size[1]),
+                                                                 "deviceScaleFactor": 1, "mobile": False})
         d.get(url)
         if ready:
             wait(d, ready, timeout)

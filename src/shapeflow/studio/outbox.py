@@ -5,11 +5,12 @@ WebSocket at once (an edit's answer and the family's progress) could leave one o
 a drain that never came, and a slow tab must never hold up the others or the edits.
 
 Bounded: a message that supersedes queued ones replaces them (a full ``POS0`` frame the
-``POS0``/``PSUB`` frames before it, a ``mesh`` message everything); when what waits still exceeds
+``POS0``/``PSUB`` frames before it, a ``mesh`` message everything but the ``done`` and ``error``
+answers); when what waits still exceeds
 ``limit`` bytes, the queue is emptied and the tab gets one fresh snapshot of the whole session
 instead (``resync()``, whose ``state`` message says ``"resync": true``: the page stops waiting for
-the answers it lost).  ``state`` messages (a few hundred bytes) are never coalesced: the page counts
-one answer per request.  A send that does not complete
+the answers it lost).  ``state``, ``done`` and ``error`` messages (a few hundred bytes) are never coalesced: the page
+counts one ``done`` or ``error`` per request.  A send that does not complete
 within ``stall`` seconds (a tab that stopped reading) closes that socket: the server keeps no
 memory for it.
 """
@@ -62,8 +63,8 @@ class Outbox:
     def put(self, *messages) -> None:
         for m in messages:
             kind = _kind(m)
-            if kind == "mesh":
-                self._drop(lambda q: False)
+            if kind == "mesh":                  # answers to earlier requests still go: the page counts them
+                self._drop(lambda q: _kind(q) in ("done", "error"))
             elif kind == "POS0":
                 self._drop(lambda q: _kind(q) not in ("POS0", "PSUB"))
             self.queue.append(m)

@@ -5,8 +5,10 @@ A page sends JSON objects ``{"op": NAME, ...}``.  :func:`parse` turns the text o
 anything changes: the text must be one JSON object (no ``NaN``/``Infinity`` literals, nesting at
 most :data:`MAX_DEPTH` deep), its ``op`` one of :data:`MESSAGES`, every other key one of that
 message's fields, and every value of its field's kind (finite numbers within their bounds, booleans
-that are booleans, names from their list, at most :data:`MAX_LAMS` λ values).  A message's handler
-(in :mod:`~shapeflow.studio.server`) receives only checked values; the bounds that depend on the
+that are booleans, names from their list, at most :data:`MAX_LAMS` λ values).  Any message may
+carry an ``id`` (an integer the page numbers its requests with), echoed to that page alone in
+the ``done`` message that follows the answer (or in the ``error`` message).  A message's handler
+(in :mod:`~shapeflow.studio.hub`) receives only checked values; the bounds that depend on the
 mesh (a brush centre near the model, a radius below ten diagonals) are checked there.
 
 ======== ================================================ =========================================
@@ -18,10 +20,14 @@ field    name ("weights", "curvature", "displacement"),   the colour field of th
          lam (λ or null)                                  of the preview at λ
 options  lam_border, iterations (1..100), normalized,     solve the family again with these options
          preserve_volume, compat ("paper", "blender")
-solve    lams (1..MAX_LAMS values of λ)                   solve the family over these λ
-paint    center (3 numbers), radius (> 0), value (0..1),  paint weights (one undo step)
-         strength (0..1)
-dab      center, radius, lam (λ of the brush), inflate    one dab of the enhancement or inflate brush
+solve    lams (1..MAX_LAMS values of λ), or from, to,     solve the family over these λ (and 0)
+         step (the command line's family range)
+begin    —                                                a stroke begins: its edits are one step
+end      —                                                the stroke ends
+paint    center (3 numbers), radius (> 0), value (0..1),  paint weights (one undo step, or part of
+         strength (0..1), mirror (flag)                   the stroke)
+dab      center, radius, lam (λ of the brush), inflate,   one dab of the enhancement or inflate
+         strength (inflate: −1..1), mirror (flag)         brush (at λ ≠ 0: the preview applied first)
 apply    value (λ)                                        the preview at λ becomes the shape
 undo     —                                                take back the last step
 redo     —                                                do it again
@@ -36,7 +42,7 @@ from dataclasses import dataclass
 from .. import params
 from ..errors import ParameterError
 
-__all__ = ["MESSAGES", "MAX_DEPTH", "MAX_LAMS", "parse", "Field"]
+__all__ = ["MESSAGES", "MAX_DEPTH", "MAX_LAMS", "ID", "parse", "Field"]
 
 #: how deeply a message may nest (a real one nests two levels: an object holding a list)
 MAX_DEPTH = 8
@@ -88,7 +94,7 @@ POINT = Field("point")
 RADIUS = Field("number", 0.0, None)
 UNIT = Field("number", 0.0, 1.0)
 
-#: message type → its fields (the handlers are the server's ``_on_<op>`` functions)
+#: message type → its fields (the handlers: :data:`shapeflow.studio.hub.HANDLERS`)
 MESSAGES: dict[str, dict[str, Field]] = {
     "lam": {"value": LAM, "field": Field("choice", choices=("curvature", "displacement", "weights"),
                                          default=None, nullable=True)},
@@ -99,11 +105,17 @@ MESSAGES: dict[str, dict[str, Field]] = {
                 "normalized": Field("flag", default=True),
                 "preserve_volume": Field("flag", default=False),
                 "compat": Field("choice", choices=("paper", "blender"), default="paper")},
-    "solve": {"lams": Field("lams", LAM.lo, LAM.hi)},
+    "solve": {"lams": Field("lams", LAM.lo, LAM.hi, default=None, nullable=True),
+              "from": Field("number", -1e6, 1e6, default=None, nullable=True),
+              "to": Field("number", -1e6, 1e6, default=None, nullable=True),
+              "step": Field("number", -1e6, 1e6, default=None, nullable=True)},
+    "begin": {},
+    "end": {},
     "paint": {"center": POINT, "radius": RADIUS, "value": Field("number", 0.0, 1.0, default=1.0),
-              "strength": Field("number", 0.0, 1.0, default=1.0)},
+              "strength": Field("number", 0.0, 1.0, default=1.0), "mirror": Field("flag", default=False)},
     "dab": {"center": POINT, "radius": RADIUS, "lam": Field("number", -1e6, 1e6, default=-50.0),
-            "inflate": Field("flag", default=False)},
+            "inflate": Field("flag", default=False), "strength": Field("number", -1.0, 1.0, default=0.05),
+            "mirror": Field("flag", default=False)},
     "apply": {"value": LAM},
     "undo": {},
     "redo": {},
@@ -132,8 +144,15 @@ def _depth(x, limit: int) -> int:
     return deepest
 
 
+#: a field every message may carry: the tab's number for the request, echoed in the ``done`` (or
+#: ``error``) message that answers it, to that tab only
+ID = Field("integer", 0, 2**53, default=None, nullable=True)
+
+
 def parse(text) -> tuple[str, dict]:
-    """``(op, fields)`` of one message's text, every field checked and defaults filled in."""
+    """``(op, fields)`` of one message's text, every field checked and defaults filled in (``id``
+    among them: None when the message has none).  A refused message's error carries its ``id``
+    (when that was valid) as the attribute ``request_id``, for the answer."""
     if not isinstance(text, str):
         raise ParameterError("a message must be JSON text")
     try:
@@ -146,14 +165,23 @@ def parse(text) -> tuple[str, dict]:
         raise ParameterError(f"a message must be a JSON object, got {type(msg).__name__}")
     if _depth(msg, MAX_DEPTH) > MAX_DEPTH:
         raise ParameterError(f"the message nests deeper than {MAX_DEPTH} levels")
+    rid = ID.check("id", msg.get("id"))
+    try:
+        return _fields(msg, rid)
+    except ParameterError as exc:
+        exc.request_id = rid
+        raise
+
+
+def _fields(msg: dict, rid) -> tuple[str, dict]:
     op = msg.get("op")
     if not isinstance(op, str) or op not in MESSAGES:
         raise ParameterError(f"unknown operation {_show(op)}; the studio knows {', '.join(MESSAGES)}")
     fields = MESSAGES[op]
-    extra = sorted(k for k in msg if k != "op" and k not in fields)
+    extra = sorted(k for k in msg if k not in ("op", "id") and k not in fields)
     if extra:
         raise ParameterError(f"{op}: unknown field{'s' if len(extra) > 1 else ''} {', '.join(map(_show, extra))}")
-    out = {}
+    out = {"id": rid}
     for name, f in fields.items():
         if name in msg:
             out[name] = f.check(name, msg[name])

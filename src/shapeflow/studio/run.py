@@ -12,7 +12,10 @@ from .security import is_loopback
 from .server import DEFAULT_LAMS, MAX_UPLOAD, guard_of, hub_of, make_app
 from .session import StudioSession
 
-__all__ = ["StudioServer", "studio"]
+__all__ = ["StudioServer", "studio", "IFRAME_HEIGHT"]
+
+#: the height of the page in a notebook, pixels (the panel fits without scrolling from 760)
+IFRAME_HEIGHT = 780
 
 
 class StudioServer:
@@ -92,6 +95,11 @@ class StudioServer:
         """The :class:`StudioSession` the pages edit (a new one after a page opened a file)."""
         return hub_of(self._app).session
 
+    def result(self):
+        """The mesh as the pages have made it so far (:attr:`StudioSession.mesh`: the layout of the
+        file opened, the painted weights as its ``"weight"`` attribute); the server keeps running."""
+        return self.session.mesh
+
     def stop(self) -> None:
         """End the server at once: open pages lose their connection, a page that stopped reading
         included (its socket is aborted, not waited for)."""
@@ -100,6 +108,8 @@ class StudioServer:
 
         async def shutdown():
             hub = hub_of(self._app)
+            if hub.watcher is not None:
+                hub.watcher.cancel()
             for ws, box in list(hub.sockets.items()):
                 box.close()
                 box.abort()
@@ -121,16 +131,24 @@ class StudioServer:
         self.stop()
         return False
 
-    def _repr_html_(self) -> str:          # Jupyter: the page in the notebook
-        return f'<iframe src="{self.url}" width="100%" height="600" style="border:0"></iframe>'
+    def _repr_html_(self) -> str:
+        """Jupyter shows the page inline: an iframe of :attr:`url`.  The page inside gets no cookie
+        from another site's frame (SameSite=Strict), so its scripts load with the token in their
+        addresses (the page's import map)."""
+        import html
+
+        return (f'<iframe src="{html.escape(self.url, quote=True)}" width="100%" height="{IFRAME_HEIGHT}" '
+                'style="border:0" title="ShapeFlow Studio"></iframe>')
 
 
 def studio(mesh, *, port: int = 0, host: str = "127.0.0.1", lams=DEFAULT_LAMS,
-           max_upload: int = MAX_UPLOAD) -> StudioServer:
-    """Start the studio on ``mesh`` and return its server; in Jupyter the returned object shows
-    the page inline.  ``server.session`` is the :class:`StudioSession` the page edits.
+           max_upload: int = MAX_UPLOAD, name: str = "") -> StudioServer:
+    """Start the studio on ``mesh`` and return its server (``sf.studio(mesh)``); in Jupyter the
+    returned object shows the page inline.  ``server.result()`` is the mesh as edited so far,
+    ``server.session`` the :class:`StudioSession` the page edits, ``server.stop()`` ends it.
 
-    >>> s = sf.studio(sf.load_example("spot"))     # doctest: +SKIP
-    >>> s                                           # doctest: +SKIP
+    >>> server = sf.studio(sf.load_example("spot"))     # doctest: +SKIP
+    >>> server                                           # doctest: +SKIP
+    >>> edited = server.result()                         # doctest: +SKIP
     """
-    return StudioServer(mesh, host=host, port=port, lams=lams, max_upload=max_upload)
+    return StudioServer(mesh, host=host, port=port, lams=lams, max_upload=max_upload, name=name)

@@ -132,6 +132,10 @@ class Guard:
             return True                 # not a browser's cross-origin request (a script, curl)
         return origin.strip().lower() == f"http://{host_header.strip().lower()}"
 
+    def token_is(self, given: str) -> bool:
+        """Whether ``given`` is the token (compared in constant time)."""
+        return hmac.compare_digest(given.encode("utf-8", "replace"), self.token.encode())
+
     def token_ok(self, request, *, cookie_allowed: bool) -> bool:
         given = [request.query.get("token"), request.headers.get(HEADER)]
         if cookie_allowed:

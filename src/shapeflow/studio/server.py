@@ -13,15 +13,20 @@ page's cookie).  docs/robustness.md states the threat model.
 
 Protocol.  The page sends JSON messages, checked against the table of
 :mod:`~shapeflow.studio.protocol` before anything changes; a refused message is answered by an
-``error`` message and the socket stays open.  The server sends JSON text messages
-(``{"type": ...}``: ``mesh``, ``state``, ``field``, ``error``) and binary frames that start with
+``error`` message and the socket stays open; each request is answered to its tab by a ``done``
+(or that ``error``) message carrying the request's ``id``.  The server sends JSON text messages
+(``{"type": ...}``: ``mesh``, ``state``, ``field``, ``done``, ``error``) and binary frames that start with
 a 4-byte tag: ``POS0`` float32 positions (n, 3), ``BAS0`` float32 positions of the input (the
 split view's "before"), ``TRI0`` uint32 triangles (the faces' fans, for drawing), ``EDG0``
 uint32 edge pairs (the real polygon edges, for the wireframe), ``WGT0`` float32 weights (n,),
 ``FLD0`` float32 values of a colour field (n,), ``PSUB`` some positions (uint32 count k, k
 uint32 indices, k × 3 float32: what a dab moved).  No frame holds a value that is not finite in
 float32.  A ``mesh`` message starts a new mesh (on connecting, and in every tab when a file is
-opened).  Each tab has its own bounded queue (:mod:`~shapeflow.studio.outbox`).
+opened).  Each tab has its own bounded queue (:mod:`~shapeflow.studio.outbox`).  What the
+messages do, and the editing model, is :mod:`~shapeflow.studio.hub`'s.
+
+``GET /`` is the page, with an import map that gives every script's address with the token the
+page was opened with (a page in another site's frame, e.g. a notebook's, gets no cookie).
 
 ``GET /download/NAME.EXT`` returns the current mesh, on the layout of the file opened, in any
 format shapeflow writes; ``POST /open?name=FILE.EXT`` (the file as the body) opens a mesh in
@@ -39,33 +44,35 @@ from __future__ import annotations
 
 import asyncio
 import functools
+import json
 import os
 import tempfile
 from pathlib import Path
+from urllib.parse import urlencode
 
 import numpy as np
 
 from .. import params
-from ..errors import OptionalDependencyError, ParameterError, ShapeflowError
-from ..geometry.measures import fan_triangles
+from ..errors import OptionalDependencyError, ShapeflowError
 from ..io.weights import WEIGHT_EXTENSIONS
 from . import protocol
+from .hub import HANDLERS, STROKE_OPS, Hub, field_scale, frame  # noqa: F401 (field_scale: the tests' name)
 from .outbox import LIMIT as OUTBOX_LIMIT
 from .outbox import STALL, Outbox
 from .security import SAFE_HEADERS, Guard, check_name, content_disposition, new_token
 from .session import StudioSession
 
-__all__ = ["make_app", "hub_of", "field_scale", "STATIC", "DEFAULT_LAMS", "MAX_MESSAGE", "MAX_UPLOAD"]
+__all__ = ["make_app", "hub_of", "guard_of", "field_scale", "STATIC", "DEFAULT_LAMS", "MAX_MESSAGE",
+           "MAX_UPLOAD"]
 
 STATIC = Path(__file__).resolve().parent / "static"
-#: the family the slider walks by default: λ = 0 … −240 (figure 1 of the paper)
-DEFAULT_LAMS = tuple(float(x) for x in np.arange(0.0, -241.0, -10.0))
+#: the family the slider walks by default: λ = +60 … −240 in steps of 10 (smoothing and enhancement
+#: share one solve: +λ and −λ are one shift of the multi-shift solve)
+DEFAULT_LAMS = tuple(float(x) for x in np.arange(60.0, -241.0, -10.0))
 #: the largest message a page may send (a JSON edit is a few hundred bytes)
 MAX_MESSAGE = 1 << 16
 #: the largest file a page may open by default (``--max-upload``), bytes
 MAX_UPLOAD = 512 << 20
-#: largest |coordinate| a page can draw (float32)
-FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 def _web():
@@ -76,214 +83,23 @@ def _web():
     return web, WSMsgType
 
 
-def _frame(tag: bytes, arr: np.ndarray, dtype) -> bytes:
-    a = np.ascontiguousarray(arr, dtype=dtype)
-    if a.dtype.kind == "f" and not np.isfinite(a).all():
-        raise ParameterError("the result holds values a page cannot draw (not finite in float32); nothing was sent")
-    return tag + a.tobytes()
-
-
-class _Hub:
-    """The session, the family's options and the sockets of the open tabs."""
-
-    def __init__(self, session: StudioSession, lams, name: str = ""):
-        self.lams = list(lams)
-        self.options: dict = {}
-        self.sockets: dict = {}      # WebSocketResponse -> its Outbox
-        self.lock = asyncio.Lock()
-        self.watcher: asyncio.Task | None = None
-        self.use(session, name)
-
-    def use(self, session: StudioSession, name: str = "") -> None:
-        """Edit ``session`` (shown as ``name``) from now on: what the page draws is derived here."""
-        V = session.vertices
-        if V.size and float(np.abs(V).max()) > FLOAT32_MAX / 16:
-            raise ParameterError(f"{name or 'the mesh'}: coordinates up to {np.abs(V).max():.3g} cannot be drawn "
-                                 "in a browser (float32); scale the model first")
-        self.session = session
-        mesh = session.base             # what the page draws: the welded mesh
-        self.tris = fan_triangles(mesh)
-        self.edges = mesh.topology.edges
-        self.name = str(name or mesh.metadata.get("name", ""))
-        self.n_vertices, self.n_faces = mesh.n_vertices, mesh.n_faces
-        self.diagonal = float(mesh.diagonal) or 1.0
-        self.box = (V.min(axis=0), V.max(axis=0)) if V.size else (np.zeros(3), np.zeros(3))
-        self.lam = 0.0
-        self.stale = False
-
-    def mesh_frames(self) -> list:
-        """Everything a page needs to draw the session from scratch."""
-        s = self.session
-        return [{"type": "mesh", "n_vertices": self.n_vertices, "n_faces": self.n_faces, "name": self.name,
-                 "formats": _extensions()},
-                _frame(b"TRI0", self.tris, "<u4"), _frame(b"EDG0", self.edges, "<u4"),
-                _frame(b"BAS0", s.input_vertices, "<f4"), _frame(b"POS0", s.vertices, "<f4"),
-                _frame(b"WGT0", s.weights, "<f4"), self.state()]
-
-    def snapshot(self) -> list:
-        """The current positions, weights and state (a tab that fell behind gets this instead)."""
-        return [_frame(b"POS0", self._shown(), "<f4"), _frame(b"WGT0", self.session.weights, "<f4"),
-                {**self.state(), "resync": True}]
-
-    def _shown(self) -> np.ndarray:
-        s = self.session
-        return s.shape_at(self.lam) if self.lam != 0 and s.family_status().state == "done" else s.vertices
-
-    def solve(self) -> None:
-        self.stale = False
-        self.session.solve_family(self.lams, **self.options)
-        if self.watcher is None or self.watcher.done():     # one watcher follows whichever solve is current
-            self.watcher = asyncio.create_task(_watch_family(self))
-
-    def near(self, center, radius: float, op: str) -> None:
-        """Refuse a brush far off the model or larger than it by far (both would only burn time)."""
-        d = self.diagonal
-        if radius > 10.0 * d:
-            raise ParameterError(f"{op}: radius {radius:.6g} is more than ten times the model's size ({d:.6g})")
-        lo, hi = self.box
-        if np.any(np.asarray(center) < lo - 10.0 * d) or np.any(np.asarray(center) > hi + 10.0 * d):
-            raise ParameterError(f"{op}: center {center} is far outside the model")
-
-    async def broadcast(self, *messages) -> None:
-        """Queue ``messages`` for every open tab (each tab's own writer sends them in order)."""
-        for box in list(self.sockets.values()):
-            box.put(*messages)
-
-    def state(self) -> dict:
-        s = self.session
-        st = s.family_status()
-        return {"type": "state", "lam": self.lam, "version": s.version, "can_undo": s.can_undo,
-                "can_redo": s.can_redo, "lams": self.lams, "options": self.options,
-                "family": {"state": st.state, "done": st.done, "total": st.total, "error": st.error}}
-
-
-def _extensions() -> list:
-    """The file extensions shapeflow reads and writes (PLY first: it keeps the weights)."""
-    from ..io.registry import FORMATS
-
-    fmts = FORMATS.values() if isinstance(FORMATS, dict) else FORMATS
-    exts = sorted({e.lstrip(".") for f in fmts for e in f.extensions})
-    return sorted(exts, key=lambda e: e != "ply")
-
-
-def field_scale(values: np.ndarray) -> float:
-    """The colour range of a field: the 98th percentile of |value| (O(n), no sort), 1 when that is 0."""
-    a = np.abs(np.asarray(values, dtype=np.float64))
-    if a.size == 0:
-        return 1.0
-    k = int(0.98 * (a.size - 1))
-    v = float(np.partition(a, k)[k])
-    return v if v > 0 and np.isfinite(v) else 1.0
-
-
-def _field_frames(s: StudioSession, name: str, lam) -> list:
-    values = s.field(name, lam=lam)
-    return [_frame(b"FLD0", values, "<f4"),
-            {"type": "field", "name": name, "version": s.version, "lam": lam, "scale": field_scale(values)}]
-
-
-# --- the handlers of the protocol's messages (protocol.MESSAGES) --------------------
 async def _in_thread(fn):
     return await asyncio.get_running_loop().run_in_executor(None, fn)
-
-
-async def _on_lam(hub: _Hub, m: dict) -> list:
-    s = hub.session
-    hub.lam = m["value"]
-    if hub.stale:        # the shape or the weights changed since the family was solved: solve again
-        hub.solve()
-    done = s.family_status().state == "done"
-    out = [_frame(b"POS0", s.shape_at(hub.lam) if done else s.vertices, "<f4")]
-    if m["field"] in ("curvature", "displacement"):     # the colours follow the preview
-        out += await _in_thread(lambda: _field_frames(s, m["field"], hub.lam if done else None))
-    return out + [hub.state()]
-
-
-async def _on_field(hub: _Hub, m: dict) -> list:
-    s = hub.session
-    lam = m["lam"] if s.family_status().state == "done" else None
-    return await _in_thread(lambda: _field_frames(s, m["name"], lam)) + [hub.state()]
-
-
-async def _on_options(hub: _Hub, m: dict) -> list:
-    hub.options = dict(m)
-    hub.solve()
-    return [hub.state()]
-
-
-async def _on_solve(hub: _Hub, m: dict) -> list:
-    from ..budget import check_memory
-    from ..flow.family import family_bytes
-
-    lams = sorted(set(m["lams"]), reverse=True)
-    check_memory(f"a family of {len(lams):,} members of {hub.n_vertices:,} vertices",
-                 family_bytes(len(lams), hub.n_vertices), parameter="lams")
-    hub.lams = lams
-    hub.solve()
-    return [hub.state()]
-
-
-async def _on_paint(hub: _Hub, m: dict) -> list:
-    hub.near(m["center"], m["radius"], "paint")
-    hub.stale = True
-    await _in_thread(lambda: hub.session.paint(m["center"], m["radius"], value=m["value"], strength=m["strength"]))
-    return [_frame(b"WGT0", hub.session.weights, "<f4"), hub.state()]
-
-
-async def _on_dab(hub: _Hub, m: dict) -> list:
-    hub.near(m["center"], m["radius"], "dab")
-    s = hub.session
-    hub.stale = True
-    moved = await _in_thread(lambda: s.dab(m["center"], radius=m["radius"], lam=m["lam"], inflate=m["inflate"]))
-    pos = np.ascontiguousarray(s.vertices_at(moved), "<f4")
-    if not np.isfinite(pos).all():
-        raise ParameterError("the dab's result cannot be drawn (not finite in float32); undo it")
-    # only the vertices the dab moved: a few thousand, not the whole mesh
-    part = b"PSUB" + np.uint32(moved.size).tobytes() + np.ascontiguousarray(moved, "<u4").tobytes() + pos.tobytes()
-    return [part, hub.state()]
-
-
-async def _on_apply(hub: _Hub, m: dict) -> list:
-    hub.stale = True
-    await _in_thread(lambda: hub.session.apply_shape(m["value"]))
-    hub.lam = 0.0
-    return [_frame(b"POS0", hub.session.vertices, "<f4"), hub.state()]
-
-
-async def _on_undo(hub: _Hub, m: dict, *, redo: bool = False) -> list:
-    s = hub.session
-    hub.stale = True
-    (s.redo if redo else s.undo)()
-    return [_frame(b"POS0", s.vertices, "<f4"), _frame(b"WGT0", s.weights, "<f4"), hub.state()]
-
-
-HANDLERS = {"lam": _on_lam, "field": _on_field, "options": _on_options, "solve": _on_solve, "paint": _on_paint,
-            "dab": _on_dab, "apply": _on_apply, "undo": _on_undo,
-            "redo": functools.partial(_on_undo, redo=True)}
-assert HANDLERS.keys() == protocol.MESSAGES.keys()
-
-
-async def _watch_family(hub: _Hub) -> None:
-    """Tell every tab how the background family solve goes, until it ends."""
-    while True:
-        st = hub.session.family_status()
-        await hub.broadcast(hub.state())
-        if st.state != "running":
-            return
-        await asyncio.sleep(0.1)
 
 
 class _Routes:
     """The HTTP and WebSocket handlers of one app (``web``: aiohttp's web module)."""
 
-    def __init__(self, hub: _Hub, web, WSMsgType, *, solve: bool, max_upload: int, outbox: dict):
+    def __init__(self, hub: Hub, web, WSMsgType, *, solve: bool, max_upload: int, outbox: dict):
         self.hub, self.web, self.WSMsgType = hub, web, WSMsgType
         self.solve, self.max_upload, self.outbox = solve, max_upload, outbox
 
     async def index(self, request):
         guard = request.app[_key(self.web, "guard")]
-        resp = self.web.FileResponse(STATIC / "index.html")
-        if request.query.get("token") is not None:     # the page's scripts load with the cookie
+        given = request.query.get("token")
+        token = given if given is not None and guard.token_is(given) else None
+        resp = self.web.Response(text=page(token), content_type="text/html", charset="utf-8")
+        if token is not None:     # the page's scripts load with the cookie, or with the token in their URLs
             resp.set_cookie(guard.cookie, guard.token, httponly=True, samesite="Strict", path="/")
         return resp
 
@@ -300,16 +116,27 @@ class _Routes:
                 if msg.type != self.WSMsgType.TEXT:
                     box.put({"type": "error", "message": "the studio takes JSON text messages only"})
                     continue
+                rid = None
                 try:
                     op, fields = protocol.parse(msg.data)
+                    rid = fields.pop("id")
                     async with hub.lock:
+                        hub.sender = ws
+                        if op not in STROKE_OPS:        # a stroke left open ends at any other message
+                            hub.close_stroke()
                         out = await HANDLERS[op](hub, fields)
                     await hub.broadcast(*out)
+                    box.put({"type": "done", "id": rid, "op": op})
                 except ShapeflowError as exc:
-                    box.put({"type": "error", "message": str(exc)})
+                    rid = getattr(exc, "request_id", rid)
+                    box.put({"type": "error", "message": str(exc), "id": rid})
         finally:
             hub.sockets.pop(ws, None)
             box.close()
+            if hub.stroke_owner is ws:                  # the tab that began a stroke went away: it ends
+                async with hub.lock:
+                    hub.close_stroke()
+                    await hub.broadcast(hub.state())
         return ws
 
     async def download(self, request):
@@ -324,13 +151,20 @@ class _Routes:
             format_for(name, None)
         except ShapeflowError as exc:
             raise web.HTTPBadRequest(text=str(exc)) from None
+        hub = self.hub
+        async with hub.lock:
+            hub.close_stroke()
+            session = hub.session
+            mesh, mark = session.saved_mesh()
         with tempfile.TemporaryDirectory(prefix="shapeflow-studio-") as tmp:
             path = os.path.join(tmp, name)
             try:
-                await _in_thread(lambda: save(path, self.hub.session.mesh))
+                await _in_thread(lambda: save(path, mesh))
             except ShapeflowError as exc:       # e.g. the format's optional dependency is missing
                 raise web.HTTPBadRequest(text=str(exc).replace(tmp + os.sep, "")) from None
             body = Path(path).read_bytes()
+        session.mark_saved(mark)                        # downloaded: no unsaved changes from here
+        await hub.broadcast(hub.state())
         return web.Response(body=body, content_type="application/octet-stream",
                             headers={"Content-Disposition": content_disposition(name)})
 
@@ -400,9 +234,10 @@ class _Routes:
             with tmp:
                 w = await _in_thread(lambda: read_upload(path, name, kind="weights", n_vertices=s.n_input_vertices))
             async with hub.lock:
+                hub.close_stroke()
                 hub.session.set_weights(w)
-                hub.stale = True
-                await hub.broadcast(_frame(b"WGT0", hub.session.weights, "<f4"), hub.state())
+                hub.changed()
+                await hub.broadcast(frame(b"WGT0", hub.session.weights, "<f4"), hub.state())
         except ShapeflowError as exc:
             raise self.web.HTTPBadRequest(text=str(exc)) from None
         return self.web.json_response({"n_vertices": s.n_input_vertices})
@@ -442,7 +277,7 @@ def make_app(session: StudioSession, *, lams=DEFAULT_LAMS, solve: bool = True, m
     tab and how long one send to it may take (:mod:`~shapeflow.studio.outbox`).
     """
     web, WSMsgType = _web()
-    hub = _Hub(session, sorted((float(x) for x in lams), reverse=True), name)
+    hub = Hub(session, sorted((float(x) for x in lams), reverse=True), name)
     r = _Routes(hub, web, WSMsgType, solve=solve, max_upload=params.integer("max_upload", max_upload, lo=1),
                 outbox={"limit": params.integer("outbox_limit", outbox_limit, lo=1),
                         "stall": params.number("stall_seconds", stall_seconds, lo=0.001)})
@@ -465,13 +300,26 @@ def make_app(session: StudioSession, *, lams=DEFAULT_LAMS, solve: bool = True, m
     return app
 
 
+def page(token: str | None) -> str:
+    """The page (index.html) with its import map: every script of the package mapped to its address,
+    with ``?token=`` when the page was opened with the token, so that its scripts load without the
+    cookie too (a page in another site's frame, e.g. a notebook's, gets no SameSite=Strict cookie)."""
+    q = "" if token is None else "?" + urlencode({"token": token})
+    imports = {f"/static/{p.relative_to(STATIC).as_posix()}": f"/static/{p.relative_to(STATIC).as_posix()}{q}"
+               for p in sorted(STATIC.rglob("*.js"))}
+    imports["three"] = imports["/static/vendor/three/three.module.js"]
+    text = json.dumps({"imports": imports}).replace("</", "<\\/")
+    return (STATIC / "index.html").read_text(encoding="utf-8").replace(
+        "<!--importmap-->", f'<script type="importmap">{text}</script>', 1)
+
+
 @functools.cache
 def _key(web, what: str):
     """The app key under which an app keeps its hub or guard (made once aiohttp is imported)."""
-    return web.AppKey(f"shapeflow_studio_{what}", _Hub if what == "hub" else Guard)
+    return web.AppKey(f"shapeflow_studio_{what}", Hub if what == "hub" else Guard)
 
 
-def hub_of(app) -> _Hub:
+def hub_of(app) -> Hub:
     """The session holder of an app made by :func:`make_app`."""
     return app[_key(_web()[0], "hub")]
 

@@ -5,16 +5,22 @@
 :func:`shapeflow.family`), the weight brush paints per-vertex weights with a smooth
 falloff, the sculpt brushes (:class:`~shapeflow.sculpt.Brush`, :class:`~shapeflow.sculpt.InflateBrush`)
 move the surface, and every edit is one step of a shared undo history that stores only
-the vertices it changed.
+the vertices it changed (:mod:`~shapeflow.studio.history`): a stroke (:meth:`StudioSession.begin_stroke`
+… :meth:`StudioSession.end_stroke`) is one step, and the history is bounded in bytes.  With
+``mirror=True`` a brush or paint dab is repeated across the model's plane of symmetry
+(:meth:`StudioSession.mirrored`), both in one step.
 
 Thread model: every public method takes the session's lock, so a page's event handlers may
 call it from several threads; the family solve runs on a thread of its own and publishes its
 shapes when complete (:meth:`StudioSession.family_status` reports its progress meanwhile).
-A new solve supersedes a running one, whose result is then dropped.
+A new solve supersedes a running one, whose result is then dropped; until a solve completes, the
+shapes of the previous one stay available for previews while the positions they were solved from
+are still the current ones (:attr:`StudioSession.can_preview`: a weight change keeps them).
 """
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from dataclasses import dataclass, field
 from typing import Sequence
@@ -24,6 +30,7 @@ import numpy as np
 from .. import params
 from ..errors import ParameterError
 from ..mesh import Mesh
+from .history import History
 
 __all__ = ["StudioSession", "FamilyStatus", "smooth_falloff"]
 
@@ -49,18 +56,6 @@ class FamilyStatus:
     error: str | None = None
 
 
-@dataclass
-class _Step:
-    """One undo step: the vertices it touched, before and after (positions and weights)."""
-
-    what: str
-    idx: np.ndarray
-    v_before: np.ndarray
-    v_after: np.ndarray
-    w_before: np.ndarray
-    w_after: np.ndarray
-
-
 class StudioSession:
     """The editable state of one studio page (see the module docstring for the thread model).
 
@@ -68,11 +63,13 @@ class StudioSession:
     ----------
     mesh : Mesh
         What is edited; its ``"weight"`` attribute, when present, is the start of the weights.
-    undo_steps : int
-        History length (older steps are forgotten).
+    history_bytes : int, optional
+        The most memory the undo history may hold (older steps are forgotten first; default
+        :func:`~shapeflow.studio.history.default_limit`: 256 MiB, less on a machine with less
+        than 1 GiB available).
     """
 
-    def __init__(self, mesh: Mesh, *, undo_steps: int = 64):
+    def __init__(self, mesh: Mesh, *, history_bytes: int | None = None):
         from ..geometry.weld import weld_if_split
         from ..mesh.convert import as_mesh
 
@@ -84,10 +81,10 @@ class StudioSession:
         self._V = np.array(mesh.vertices, dtype=np.float64)
         w = mesh.weights
         self._w = np.ones(mesh.n_vertices) if w is None else np.array(w, dtype=np.float64)
-        self._undo: list[_Step] = []
-        self._redo: list[_Step] = []
-        self._max = params.integer("undo_steps", undo_steps, lo=1, hi=10_000)
+        self._history = History(history_bytes)
         self._family: np.ndarray | None = None
+        self._family_lams: np.ndarray | None = None
+        self._family_shape = -1           # the shape version the held family was solved from
         self._status = FamilyStatus()
         self._job = 0
         self._thread: threading.Thread | None = None
@@ -95,6 +92,7 @@ class StudioSession:
         self._brush_key = None
         self.version = 0      #: increases with every change of positions or weights
         self._shape_version = 0
+        self._axes = None
 
     # --- state ---------------------------------------------------------
     @property
@@ -144,49 +142,88 @@ class StudioSession:
             return self._w.copy()
 
     # --- history -------------------------------------------------------
-    def _record(self, what: str, idx: np.ndarray, V_new: np.ndarray | None, w_new: np.ndarray | None) -> None:
+    def _record(self, what: str, idx, V_new: np.ndarray | None, w_new: np.ndarray | None, *,
+                alone: bool = False) -> None:
         idx = np.asarray(idx, np.int64)
-        step = _Step(what, idx, self._V[idx].copy(), self._V[idx].copy() if V_new is None else V_new,
-                     self._w[idx].copy(), self._w[idx].copy() if w_new is None else w_new)
-        self._apply(step.idx, step.v_after, step.w_after)
-        self._undo.append(step)
-        del self._undo[:-self._max]
-        self._redo.clear()
+        self._history.record(what, idx, self._V, self._w, lambda: self._apply(idx, V_new, w_new), alone=alone)
 
     def _apply(self, idx, V, w) -> None:
-        if not np.array_equal(self._V[idx], V):
+        if V is not None and not np.array_equal(self._V[idx], V):
             self._shape_version += 1          # the brush holds positions: it is rebuilt when they change
-        self._V[idx] = V
-        self._w[idx] = w
+            self._V[idx] = V
+        if w is not None:
+            self._w[idx] = w
         self.version += 1
 
-    def undo(self) -> bool:
-        """Take back the last step; False when there is none."""
+    def begin_stroke(self, what: str = "stroke") -> None:
+        """From now until :meth:`end_stroke`, every edit is part of one undo step (a stroke already
+        open is closed first)."""
         with self._lock:
-            if not self._undo:
+            self._history.close(self._V, self._w)
+            self._history.open(what, self._V.shape[0])
+
+    def end_stroke(self) -> bool:
+        """Close the open stroke (its edits become one undo step); False when none was open."""
+        with self._lock:
+            return self._history.close(self._V, self._w)
+
+    @property
+    def in_stroke(self) -> bool:
+        with self._lock:
+            return self._history.grouping
+
+    def undo(self) -> bool:
+        """Take back the last step (an open stroke is closed first); False when there is none."""
+        with self._lock:
+            step = self._history.back(self._V, self._w)
+            if step is None:
                 return False
-            step = self._undo.pop()
             self._apply(step.idx, step.v_before, step.w_before)
-            self._redo.append(step)
             return True
 
     def redo(self) -> bool:
         """Do the last undone step again; False when there is none."""
         with self._lock:
-            if not self._redo:
+            step = self._history.forward(self._V, self._w)
+            if step is None:
                 return False
-            step = self._redo.pop()
             self._apply(step.idx, step.v_after, step.w_after)
-            self._undo.append(step)
             return True
 
     @property
     def can_undo(self) -> bool:
-        return bool(self._undo)
+        with self._lock:
+            return bool(self._history.undo) or self._history.pending
 
     @property
     def can_redo(self) -> bool:
-        return bool(self._redo)
+        with self._lock:
+            return bool(self._history.redo)
+
+    @property
+    def history_bytes(self) -> tuple[int, int]:
+        """(bytes the undo history holds, its limit)."""
+        with self._lock:
+            return self._history.bytes, self._history.limit
+
+    @property
+    def modified(self) -> bool:
+        """Whether the mesh or its weights differ from the state as opened or last saved
+        (:meth:`save`, :meth:`mark_saved`); undoing back to that state makes it False again."""
+        with self._lock:
+            return self._history.modified
+
+    def saved_mesh(self) -> tuple[Mesh, object]:
+        """The current :attr:`mesh` and a mark of its state, for :meth:`mark_saved` once it is written
+        (an open stroke is closed first)."""
+        with self._lock:
+            self._history.close(self._V, self._w)
+            return self.mesh, self._history.mark()
+
+    def mark_saved(self, mark) -> None:
+        """The state ``mark`` (from :meth:`saved_mesh`) was written out: :attr:`modified` counts from it."""
+        with self._lock:
+            self._history.mark_saved(mark)
 
     # --- weights -------------------------------------------------------
     def set_weights(self, weights) -> None:
@@ -202,14 +239,17 @@ class StudioSession:
                 first = np.unique(self._base.weld_map, return_index=True)[1]
                 weights = np.asarray(weights)[first]
             w = resolve_weights(self._base, weights)
+            self._history.close(self._V, self._w)       # not part of a stroke: one that is open ends here
             self._record("weights", np.arange(self._V.shape[0]), None, w)
 
-    def paint(self, center, radius: float, *, value: float = 1.0, strength: float = 1.0) -> np.ndarray:
+    def paint(self, center, radius: float, *, value: float = 1.0, strength: float = 1.0, on=None,
+              mirror: bool = False) -> np.ndarray:
         """Move the weights inside the sphere towards ``value`` by ``strength × (1 − (d/r)²)²``;
-        returns the vertices touched (one undo step)."""
-        c = params.real_array("center", center)
-        if c.shape != (3,):
-            raise ParameterError(f"center must be 3 numbers, got shape {c.shape}")
+        returns the vertices touched (one undo step, or part of the open stroke).  ``on``: the
+        positions the distances are measured on (default the current ones; the studio passes the
+        shape its slider previews, which is what the pointer touched).  ``mirror``: the same dab
+        across the plane of symmetry as well (:meth:`mirrored`)."""
+        c = self._point("center", center)
         r = params.number("radius", radius)
         if not r > 0:
             raise ParameterError(f"radius must be > 0, got {radius!r}")
@@ -218,26 +258,38 @@ class StudioSession:
         if not (0.0 <= v <= 1.0 and 0.0 <= s <= 1.0):
             raise ParameterError(f"value and strength must lie in [0, 1], got {value!r} and {strength!r}")
         with self._lock:
-            d = np.linalg.norm(self._V - c, axis=1)
-            idx = np.flatnonzero(d < r)
-            if idx.size:
-                w = self._w[idx] + (v - self._w[idx]) * (s * smooth_falloff(d[idx] / r))
-                self._record("paint", idx, None, w)
-            return idx
+            P = self._V if on is None else np.asarray(on, np.float64)
+            if P.shape != self._V.shape:
+                raise ParameterError(f"on must hold {self._V.shape[0]} positions, got shape {P.shape}")
+            touched = []
+            centres = self._centres(c, r, mirror)
+            with self._grouped("paint", len(centres)):
+                for cc in centres:
+                    d = np.linalg.norm(P - cc, axis=1)
+                    idx = np.flatnonzero(d < r)
+                    if idx.size:
+                        w = self._w[idx] + (v - self._w[idx]) * (s * smooth_falloff(d[idx] / r))
+                        self._record("paint", idx, None, w)
+                        touched.append(idx)
+            return np.unique(np.concatenate(touched)) if touched else np.zeros(0, np.int64)
 
     # --- sculpt --------------------------------------------------------
     def dab(self, center, *, radius: float, lam: float = -50.0, inflate: bool = False,
-            strength: float = 0.05) -> np.ndarray:
+            strength: float = 0.05, mirror: bool = False) -> np.ndarray:
         """One dab of the enhancement brush (or, with ``inflate``, the inflate brush) at ``center``,
-        the painted weights scaling it; returns the vertices moved (one undo step)."""
+        the painted weights scaling it; returns the vertices moved (one undo step, or part of the open
+        stroke).  ``mirror``: the same dab across the plane of symmetry as well."""
         from ..sculpt import Brush, InflateBrush
 
+        c = self._point("center", center)
         with self._lock:
             key = (self._shape_version, bool(inflate))
             if self._brush is None or self._brush_key != key:
                 mesh = self._base.with_vertices(self._V.copy())
-                self._brush = (InflateBrush(mesh, radius=radius, strength=strength, weights=self._w.copy())
-                               if inflate else Brush(mesh, radius=radius, lam=lam, weights=self._w.copy()))
+                # undo_limit=0: the session keeps the history; the brush keeps none of its own
+                self._brush = (InflateBrush(mesh, radius=radius, strength=strength, weights=self._w.copy(),
+                                            undo_limit=0) if inflate else
+                               Brush(mesh, radius=radius, lam=lam, weights=self._w.copy(), undo_limit=0))
             b = self._brush
             b.set_weights(self._w.copy())     # painted since the brush was built: no rebuild for that
             b.radius = radius
@@ -245,16 +297,93 @@ class StudioSession:
                 b.strength = strength
             else:
                 b.lam = lam
-            moved = np.asarray(b.dab(center), np.int64)
-            if moved.size:
-                self._record("dab", moved, np.array(b.vertices[moved]), None)
+            moved = []
+            centres = self._centres(c, float(radius), mirror)
+            with self._grouped("dab", len(centres)):
+                for cc in centres:
+                    m = np.asarray(b.dab(cc), np.int64)
+                    if m.size:
+                        self._record("dab", m, np.array(b.vertices[m]), None)
+                        moved.append(m)
             self._brush_key = (self._shape_version, bool(inflate))     # the brush holds exactly these positions
-            return moved
+            return np.unique(np.concatenate(moved)) if moved else np.zeros(0, np.int64)
+
+    # --- symmetry ----------------------------------------------------------
+    @property
+    def up_axis(self) -> str:
+        """The model's up axis by the project's view rule: ``z`` for STL files (as the command line's
+        pictures, :func:`shapeflow.cli.images.up_axis`), else ``y``."""
+        return "z" if "stl" in self._input.metadata else "y"
+
+    @property
+    def front(self) -> str | None:
+        """The axis the model faces as its ``metadata["front"]`` names it (the bundled Spot: ``-z``);
+        None when it names none (or one along the up axis): the view rule's default then."""
+        from ..rendering.style import frame
+
+        f = self._input.metadata.get("front")
+        try:
+            frame(self.up_axis, f)
+        except ParameterError:
+            return None
+        return f
+
+    @property
+    def axes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(right, up, front) unit axes of the model (:func:`shapeflow.rendering.style.frame` of
+        :attr:`up_axis` and :attr:`front`)."""
+        if self._axes is None:
+            from ..rendering.style import frame
+
+            self._axes = frame(self.up_axis, self.front)
+        return self._axes
+
+    @property
+    def mirror_origin(self) -> np.ndarray:
+        """A point of the plane of symmetry: the centre of the input's bounding box."""
+        V = self._base.vertices
+        return 0.5 * (V.min(axis=0) + V.max(axis=0)) if len(V) else np.zeros(3)
+
+    def mirrored(self, point) -> np.ndarray:
+        """``point`` reflected across the model's plane of symmetry: the plane through the centre of
+        the input's bounding box normal to the model's side axis (its right, :attr:`axes`), x = 0 in
+        the model's frame."""
+        p = self._point("point", point)
+        right = self.axes[0]
+        return p - 2.0 * float((p - self.mirror_origin) @ right) * right
+
+    def _centres(self, c: np.ndarray, r: float, mirror: bool) -> list:
+        """The dab's centres: ``c``, and with ``mirror`` its reflection unless that lies within a
+        quarter radius of ``c`` (a dab on the plane itself is not doubled)."""
+        if not mirror:
+            return [c]
+        m = self.mirrored(c)
+        return [c] if np.linalg.norm(m - c) < 0.25 * r else [c, m]
+
+    @staticmethod
+    def _point(name: str, x) -> np.ndarray:
+        c = params.real_array(name, x)
+        if c.shape != (3,):
+            raise ParameterError(f"{name} must be 3 numbers, got shape {c.shape}")
+        return c
+
+    @contextlib.contextmanager
+    def _grouped(self, what: str, edits: int):
+        """One step for the ``edits`` edits the block records (inside an open stroke: part of it)."""
+        if self._history.grouping or edits < 2:
+            yield
+            return
+        self._history.open(what, self._V.shape[0])
+        try:
+            yield
+        finally:
+            self._history.close(self._V, self._w)
 
     # --- the family of shapes ------------------------------------------
     def solve_family(self, lams: Sequence[float], *, wait: bool = False, **flow_options) -> None:
         """Solve the flow for every λ of ``lams`` from the current shape and weights, in the background
-        (``wait=True``: here).  Options as for :func:`shapeflow.family`."""
+        (``wait=True``: here).  Options as for :func:`shapeflow.family`.  The shapes of the previous
+        solve stay available to :meth:`shape_at` until this one completes."""
         from ..flow.family import family
 
         lam_arr = np.sort(np.unique(params.real_array("lams", lams)))
@@ -265,8 +394,8 @@ class StudioSession:
             job = self._job
             mesh = self._base.with_vertices(self._V.copy())
             w = self._w.copy()
+            shape = self._shape_version
             self._status = FamilyStatus("running", 0, int(lam_arr.size), lam_arr.tolist())
-            self._family = None
 
         def progress(done, total):
             with self._lock:
@@ -284,14 +413,17 @@ class StudioSession:
                 shapes = family(mesh, lam_arr, weights=w, progress=progress, **flow_options)
                 with self._lock:
                     if job == self._job:
-                        self._family = np.asarray(shapes)
+                        self._family, self._family_lams, self._family_shape = np.asarray(shapes), lam_arr, shape
                         self._status.state, self._status.done = "done", self._status.total
             except _Superseded:
                 pass
             except Exception as exc:   # reported through family_status, never lost in a thread
+                from ..errors import ShapeflowError
+
                 with self._lock:
                     if job == self._job:
-                        self._status.state, self._status.error = "failed", f"{type(exc).__name__}: {exc}"
+                        why = str(exc) if isinstance(exc, ShapeflowError) else f"{type(exc).__name__}: {exc}"
+                        self._status.state, self._status.error = "failed", why
 
         with self._lock:
             previous, self._thread = self._thread, None
@@ -302,6 +434,13 @@ class StudioSession:
             with self._lock:
                 self._thread = t
             t.start()
+
+    def stop_family(self) -> None:
+        """Stop a running solve at its next progress step (its result is dropped)."""
+        with self._lock:
+            if self._status.state == "running":
+                self._job += 1
+                self._status.state = "stopped"
 
     def wait_family(self, timeout: float | None = None) -> FamilyStatus:
         """Wait until the current family solve ends (or ``timeout`` seconds pass); its status."""
@@ -316,14 +455,21 @@ class StudioSession:
             s = self._status
             return FamilyStatus(s.state, s.done, s.total, list(s.lams), s.error)
 
+    @property
+    def can_preview(self) -> bool:
+        """Whether :meth:`shape_at` has shapes solved from the current positions (the weights may have
+        changed since: a solve with the new ones may be running)."""
+        with self._lock:
+            return self._family is not None and self._family_shape == self._shape_version
+
     def shape_at(self, lam: float) -> np.ndarray:
-        """Positions for ``lam`` from the solved family: a member itself, or the linear blend of the two
-        members around it (clamped to the range solved)."""
+        """Positions for ``lam`` from the last completed family: a member itself, or the linear blend
+        of the two members around it (clamped to the range solved)."""
         lam = params.number("lam", lam)
         with self._lock:
             if self._family is None:
                 raise ParameterError("no family solved yet (solve_family, then wait for family_status 'done')")
-            lams = np.asarray(self._status.lams)
+            lams = self._family_lams
             if lam <= lams[0]:
                 return self._family[0].copy()
             if lam >= lams[-1]:
@@ -335,10 +481,11 @@ class StudioSession:
             return (1.0 - t) * self._family[k - 1] + t * self._family[k]
 
     def apply_shape(self, lam: float) -> None:
-        """Make :meth:`shape_at` the current shape (one undo step)."""
+        """Make :meth:`shape_at` the current shape: one undo step of its own, also inside an open stroke
+        (the studio applies the previewed shape when a stroke begins on it; the stroke goes on)."""
         with self._lock:
             V = self.shape_at(lam)
-            self._record("family", np.arange(self._V.shape[0]), V, None)
+            self._record("family", np.arange(self._V.shape[0]), V, None, alone=True)
 
     # --- colour fields ---------------------------------------------------
     FIELDS = ("weights", "curvature", "displacement")
@@ -375,7 +522,10 @@ class StudioSession:
         return cls(load(path), **kw)
 
     def save(self, path, **kw) -> None:
-        """Write the current mesh (weights as the ``"weight"`` attribute where the format keeps it)."""
+        """Write the current mesh (weights as the ``"weight"`` attribute where the format keeps it);
+        :attr:`modified` is False afterwards."""
         from ..io import save
 
-        save(path, self.mesh, **kw)
+        mesh, mark = self.saved_mesh()
+        save(path, mesh, **kw)
+        self.mark_saved(mark)
