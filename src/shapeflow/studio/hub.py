@@ -241,7 +241,7 @@ def _family_lams(m: dict) -> list:
             raise ParameterError("solve: give lams, or from, to and step")
         from types import SimpleNamespace
 
-        from ..cli.family import lams_from_args
+        from ..commands.family import member_lambdas
 
         a, b, step = ranged
         if step == 0:
@@ -252,7 +252,7 @@ def _family_lams(m: dict) -> list:
         if abs(b - a) / abs(step) >= protocol.MAX_LAMS:
             raise ParameterError(f"solve: from {a:g} to {b:g} step {step:g} gives more than "
                                  f"{protocol.MAX_LAMS} members")
-        lams = lams_from_args(SimpleNamespace(lambdas=None, lam_from=a, lam_to=b, lam_step=step))
+        lams = member_lambdas(SimpleNamespace(lambdas=None, lam_from=a, lam_to=b, lam_step=step))
     return sorted(set(lams) | {0.0}, reverse=True)
 
 

@@ -4,10 +4,12 @@ from __future__ import annotations
 
 import asyncio
 import threading
+from typing import Sequence
 from urllib.parse import quote, urlencode
 
 from .. import params
 from ..errors import OptionalDependencyError, ParameterError
+from ..mesh import Mesh
 from .security import is_loopback
 from .server import DEFAULT_LAMS, MAX_UPLOAD, guard_of, hub_of, make_app
 from .session import StudioSession
@@ -141,8 +143,8 @@ class StudioServer:
                 'style="border:0" title="ShapeFlow Studio"></iframe>')
 
 
-def studio(mesh, *, port: int = 0, host: str = "127.0.0.1", lams=DEFAULT_LAMS,
-           max_upload: int = MAX_UPLOAD, name: str = "") -> StudioServer:
+def studio(mesh: Mesh | StudioSession, *, port: int = 0, host: str = "127.0.0.1",
+           lams: Sequence[float] = DEFAULT_LAMS, max_upload: int = MAX_UPLOAD, name: str = "") -> StudioServer:
     """Start the studio on ``mesh`` and return its server (``sf.studio(mesh)``); in Jupyter the
     returned object shows the page inline.  ``server.result()`` is the mesh as edited so far,
     ``server.session`` the :class:`StudioSession` the page edits, ``server.stop()`` ends it.
