@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import blender_driver as drv
 import test_blender_addon as base
 from test_addon_sharp import diagonal, drive_main, edge_values, mark_edges, mesh_edges, needs_bpy, run_in_blender
 from test_blender_addon import extension_zip  # noqa: F401 - the built zip, a fixture
@@ -32,8 +33,8 @@ def _evaluated(bpy, ob):
     dg.update()
     ev = ob.evaluated_get(dg)
     me = ev.to_mesh()
-    out = dict(V=base._positions(me), E=mesh_edges(me), sharp=edge_values(me, "sharp_edge"))
-    fs, fi = base._faces(me)
+    out = dict(V=drv._positions(me), E=mesh_edges(me), sharp=edge_values(me, "sharp_edge"))
+    fs, fi = drv._faces(me)
     out.update(fs=fs, fi=fi)
     ev.to_mesh_clear()
     return out
@@ -62,10 +63,10 @@ def _creased(bpy, kind):
         ops.primitive_grid_add(x_subdivisions=5, y_subdivisions=4, size=2.0)
     ob = bpy.context.active_object
     me = ob.data
-    V = base._positions(me)
+    V = drv._positions(me)
     if kind == "grid":
         V[:, 2] = 0.3 * np.sin(2.0 * V[:, 0]) * np.cos(1.5 * V[:, 1])
-        base._set_positions(me, V)
+        drv._set_positions(me, V)
     E = mesh_edges(me)
     crease = np.zeros(len(E), dtype=np.float32)
     pick = np.arange(len(E)) % 3 == 0                    # every third edge, values 0.3 … 1
@@ -77,20 +78,20 @@ def _creased(bpy, kind):
 
 
 def _drive_creases(out: Path) -> None:
-    bpy = base._bpy_session()
-    rec = base._Recorder(out)
-    assert bpy.ops.preferences.addon_enable(module=base.ADDON) == {"FINISHED"}
+    bpy = drv._bpy_session()
+    rec = drv._Recorder(out)
+    assert bpy.ops.preferences.addon_enable(module=drv.ADDON) == {"FINISHED"}
 
     # --- creased subdivision: the add-on against Blender's Subdivision Surface on the same object
     def creases():
         info = []
         for i, (kind, boundary, levels) in enumerate(CREASE_CASES):
-            base._clear(bpy)
+            drv._clear(bpy)
             ob, E, crease = _creased(bpy, kind)
             ref = _subsurf(bpy, ob, levels, boundary)
             plain = _subsurf(bpy, ob, levels, boundary, use_creases=False)
-            rec.put(f"crease{i}_V", base._positions(ob.data))
-            fs, fi = base._faces(ob.data)
+            rec.put(f"crease{i}_V", drv._positions(ob.data))
+            fs, fi = drv._faces(ob.data)
             rec.put(f"crease{i}_fs", fs)
             rec.put(f"crease{i}_fi", fi)
             rec.put(f"crease{i}_E", E)
@@ -98,7 +99,7 @@ def _drive_creases(out: Path) -> None:
             for key in ("V", "E", "sharp"):
                 rec.put(f"crease{i}_blender_{key}", ref[key])
             rec.put(f"crease{i}_blender_plain", plain["V"])
-            base._activate(bpy, ob)
+            drv._activate(bpy, ob)
             r = bpy.ops.object.shapeflow_subdivide_enhance(levels=levels, boundary=boundary, lam=0.0)
             res = _evaluated(bpy, ob)
             rec.put(f"crease{i}_addon_V", res["V"])
@@ -108,25 +109,25 @@ def _drive_creases(out: Path) -> None:
             ob.data.edges.foreach_set("select", np.ones(len(ob.data.edges), dtype=bool))  # a sound layer
             select_edge = ob.data.attributes[".select_edge"].data_type
             # one level by the add-on, then one by Blender's modifier = two levels by Blender at once
-            base._clear(bpy)
+            drv._clear(bpy)
             ob, _, _ = _creased(bpy, kind)
             r1 = bpy.ops.object.shapeflow_subdivide_enhance(levels=1, boundary=boundary, lam=0.0)
             rec.put(f"crease{i}_chain", _subsurf(bpy, ob, levels - 1, boundary)["V"])
             # without Use Creases: Blender's modifier without them, and no creases written
-            base._clear(bpy)
+            drv._clear(bpy)
             ob, _, _ = _creased(bpy, kind)
             r2 = bpy.ops.object.shapeflow_subdivide_enhance(levels=levels, boundary=boundary, lam=0.0,
                                                             use_creases=False)
-            rec.put(f"crease{i}_nocrease", base._positions(ob.data))
+            rec.put(f"crease{i}_nocrease", drv._positions(ob.data))
             info.append(dict(result=sorted(r), chain=sorted(r1), nocrease=sorted(r2), select_edge=select_edge,
                              nocrease_attr=ob.data.attributes.get("crease_edge") is not None))
         # Subdivide and Enhance with Keep Sharp Edges: the creased cube's sub-edges are what is kept
-        base._clear(bpy)
+        drv._clear(bpy)
         ob, E, crease = _creased(bpy, "cube")
         r3 = bpy.ops.object.shapeflow_subdivide_enhance(levels=2, lam=-20.0, keep_sharp=True, sharp_by_angle=False)
         me = ob.data
-        rec.put("enhance_out", base._positions(me))
-        fs, fi = base._faces(me)
+        rec.put("enhance_out", drv._positions(me))
+        fs, fi = drv._faces(me)
         rec.put("enhance_fs", fs)
         rec.put("enhance_fi", fi)
         rec.put("enhance_E", mesh_edges(me))

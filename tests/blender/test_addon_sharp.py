@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import blender_driver as drv
 import test_blender_addon as base
 from test_blender_addon import extension_zip  # noqa: F401 - the built zip, a fixture
 
@@ -148,10 +149,10 @@ def edge_values(me, name):
 
 
 def _drive_sharp(out: Path) -> None:
-    bpy = base._bpy_session()
-    rec = base._Recorder(out)
-    status = bpy.ops.preferences.addon_enable(module=base.ADDON)
-    modules = {name: sys.modules.get(f"{base.ADDON}.{name}") for name in ("sharp", "panel")}
+    bpy = drv._bpy_session()
+    rec = drv._Recorder(out)
+    status = bpy.ops.preferences.addon_enable(module=drv.ADDON)
+    modules = {name: sys.modules.get(f"{drv.ADDON}.{name}") for name in ("sharp", "panel")}
 
     def env():
         rna = {k: getattr(bpy.ops.object, f"shapeflow_{k}").get_rna_type() for k in (
@@ -175,7 +176,7 @@ def _drive_sharp(out: Path) -> None:
     rec.put("can_rims", rims)
 
     def cube_object(marks, shape=(V0, F0, cube_edges)):
-        base._clear(bpy)
+        drv._clear(bpy)
         ob = _mesh_object(bpy, "part", *shape[:2])
         if marks == "sharp":
             mark_edges(ob.data, shape[2], "sharp_edge", True)
@@ -193,16 +194,16 @@ def _drive_sharp(out: Path) -> None:
             ob = cube_object(marks)
             kw = dict(dict(lam=LAM), **props)
             results[name] = sorted(bpy.ops.object.shapeflow_flow(**kw))
-            rec.put(f"cube_{name}", base._positions(ob.data))
-        fs, fi = base._faces(ob.data)
+            rec.put(f"cube_{name}", drv._positions(ob.data))
+        fs, fi = drv._faces(ob.data)
         rec.put("cube_fs", fs)
         rec.put("cube_fi", fi)
         # the can: its rims marked, the caps stay flat while the side enhances
         for name, props in (("keep", dict(keep_sharp=True, sharp_by_angle=False)), ("plain", {})):
             ob = can_object()
             results[f"can_{name}"] = sorted(bpy.ops.object.shapeflow_flow(lam=LAM, **props))
-            rec.put(f"can_{name}", base._positions(ob.data))
-        fs, fi = base._faces(ob.data)
+            rec.put(f"can_{name}", drv._positions(ob.data))
+        fs, fi = drv._faces(ob.data)
         rec.put("can_fs", fs)
         rec.put("can_fi", fi)
         # a loose edge marked Sharp (in no face) is left out, not an error
@@ -216,7 +217,7 @@ def _drive_sharp(out: Path) -> None:
         me.update()
         mark_edges(me, np.r_[rims, [[n, n + 1]]], "sharp_edge", True)
         results["loose"] = sorted(bpy.ops.object.shapeflow_flow(lam=LAM, keep_sharp=True, sharp_by_angle=False))
-        rec.put("can_loose", base._positions(me)[:n])
+        rec.put("can_loose", drv._positions(me)[:n])
         # Edit Mode: the selected vertices only, sharp edges kept
         ob = can_object()
         me = ob.data
@@ -227,7 +228,7 @@ def _drive_sharp(out: Path) -> None:
         bpy.ops.object.mode_set(mode="EDIT")
         results["edit"] = sorted(bpy.ops.object.shapeflow_flow(lam=LAM, keep_sharp=True, sharp_by_angle=False))
         bpy.ops.object.mode_set(mode="OBJECT")
-        rec.put("can_edit", base._positions(me))
+        rec.put("can_edit", drv._positions(me))
         rec.put("can_sel", sel)
         return results
 
@@ -240,7 +241,7 @@ def _drive_sharp(out: Path) -> None:
                                                    sharp_by_angle=False)
         members = sorted((o for o in bpy.data.objects if "shapeflow_lam" in o), key=lambda o: o.location.x)
         for k, o in enumerate(members):
-            rec.put(f"family{k}", base._positions(o.data))
+            rec.put(f"family{k}", drv._positions(o.data))
         stroke = np.array([[0.0, -1.0, 0.7], [0.6, -0.8, 1.0], [0.9, -0.2, 1.0]])   # over the top rim
         rec.put("brush_stroke", stroke)
         runs = {}
@@ -249,7 +250,7 @@ def _drive_sharp(out: Path) -> None:
             runs[name] = sorted(bpy.ops.object.shapeflow_brush(
                 lam=-40.0, radius=0.8, spacing=0.25, falloff="SMOOTH",
                 stroke=[{"name": "", "location": tuple(p)} for p in stroke], **props))
-            rec.put(f"brush_{name}", base._positions(ob.data))
+            rec.put(f"brush_{name}", drv._positions(ob.data))
         return dict(family=sorted(r_family), members=len(members), brush=runs)
 
     rec.case("family_brush", family_brush)
@@ -330,8 +331,8 @@ def run_in_blender(zip_path, tmp_path_factory, script) -> base._Run:
 
 def drive_main(argv, drive) -> int:
     """The base driver's "run" mode (the bundled shapeflow and scipy first on sys.path), running ``drive``."""
-    base._drive_run = drive
-    return base._driver_main(argv)
+    drv._drive_run = drive
+    return drv._driver_main(argv)
 
 
 @pytest.fixture(scope="module")
