@@ -12,10 +12,9 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+import blender_driver as drv
 import numpy as np
 import pytest
-import blender_driver as drv
-import test_blender_addon as base
 from test_addon_sharp import diagonal, drive_main, edge_values, mark_edges, mesh_edges, needs_bpy, run_in_blender
 from test_blender_addon import extension_zip  # noqa: F401 - the built zip, a fixture
 

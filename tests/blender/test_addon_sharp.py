@@ -16,9 +16,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+import blender_driver as drv
 import numpy as np
 import pytest
-import blender_driver as drv
 import test_blender_addon as base
 from test_blender_addon import extension_zip  # noqa: F401 - the built zip, a fixture
 
