@@ -294,3 +294,134 @@ def test_weights_of_the_file_as_opened_map_onto_the_welded_vertices(tmp_path):
     np.testing.assert_array_equal(s.weights, w[first])
     np.testing.assert_array_equal(s.mesh.weights, w[first][s.base.weld_map])
     os.remove(soup)
+
+
+def test_half_sent_requests_are_closed_and_connections_capped(monkeypatch):
+    """Slowloris: connections that send part of a request and stop are closed after the keepalive
+    time, past the cap at once, and the user's own requests are answered meanwhile."""
+    import socket
+    import urllib.request
+
+    import shapeflow.studio.run as run
+
+    monkeypatch.setattr(run, "connection_cap", lambda: 8)
+    with StudioServer(sf.load_example("spot"), solve=False, keepalive=1.0) as srv:
+        host, port = srv.address.split("/")[2].split(":")
+        socks = []
+        for _ in range(20):
+            s = socket.create_connection((host, int(port)))
+            s.sendall(b"GET / HTTP/1.1\r\nHost: 127.0.0.1\r\nX-Slow: ")       # and nothing more
+            s.settimeout(30)
+            socks.append(s)
+        closed = 0
+        for s in socks:                       # each is closed by the server: recv sees the end
+            try:
+                closed += s.recv(1) in (b"",)
+            except ConnectionResetError:
+                closed += 1
+            s.close()
+        assert closed == 20
+        assert urllib.request.urlopen(srv.url, timeout=30).status == 200
+
+
+def test_opening_a_file_stops_the_replaced_sessions_family_solve(tmp_path):
+    import urllib.request
+
+    from meshgen import cube_sphere
+
+    with StudioServer(cube_sphere(60), lams=list(np.linspace(0.0, -240.0, 60))) as srv:
+        old = srv.session
+        urllib.request.urlopen(urllib.request.Request(srv.link("open", name="t.obj"),
+                                                      data=b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"), timeout=120)
+        assert srv.session is not old
+        st = old.wait_family(120)
+        assert st.state in ("stopped", "done", "none")            # ended: no thread left solving it
+        assert not any(t.is_alive() for t in [old._thread] if t is not None)
+
+
+def test_ending_the_studio_kills_a_reader_under_way(tmp_path):
+    """A file being read for a page when the studio ends: its reader is killed, not waited for."""
+    from shapeflow.studio.upload import stop_readers
+
+    fifo = tmp_path / "slow.obj"
+    os.mkfifo(fifo)                                    # the reader blocks on it until killed
+    out = []
+    t = threading.Thread(target=lambda: out.append(_read_or_error(str(fifo))), daemon=True)
+    t.start()
+    import time as _t
+
+    for _ in range(600):                               # until its child is under way
+        from shapeflow.studio import upload
+
+        if upload._CHILDREN:
+            break
+        _t.sleep(0.05)
+    stop_readers()
+    t.join(60)
+    assert not t.is_alive() and out and out[0].startswith("slow.obj: the reader failed on this file (signal 9)")
+
+
+def _read_or_error(path):
+    try:
+        read_upload(path, "slow.obj", seconds=600)
+        return "read"
+    except MeshError as exc:
+        return str(exc)
+
+
+@pytest.mark.parametrize("ext", [".usda", ".usdc"])
+def test_usd_uploads_are_read(tmp_path, ext):
+    pytest.importorskip("pxr", reason="usd-core (the 'usd' extra) is not installed")
+    path = tmp_path / ("spot" + ext)
+    sf.save(path, sf.load_example("spot"))
+    mesh = read_upload(str(path), path.name)
+    np.testing.assert_allclose(mesh.vertices, sf.load_example("spot").vertices, atol=1e-6)
+
+
+@pytest.mark.parametrize("name,body,words", [
+    ("points.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                   b"end_header\n0 0 0\n1 0 0\n0 1 0\n", "points.ply: the mesh has no faces (3 points): the studio edits surfaces"),
+    ("points.obj", b"v 0 0 0\nv 1 0 0\n", "has no faces"),
+])
+def test_a_file_without_faces_is_refused_and_nothing_changes(server, name, body, words):
+    import urllib.error
+    import urllib.request
+
+    s, v = server.session, server.session.version
+    with pytest.raises(urllib.error.HTTPError) as exc:
+        urllib.request.urlopen(urllib.request.Request(server.link("open", name=name), data=body), timeout=60)
+    text = exc.value.read().decode()
+    assert exc.value.code == 400 and words in text and text.startswith(name), text
+    assert server.session is s and s.version == v
+
+
+def test_a_full_temporary_folder_is_one_line(server, tmp_path, monkeypatch):
+    import urllib.error
+    import urllib.request
+
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    monkeypatch.setattr(tempfile, "tempdir", str(blocker / "tmp"))     # no temporary folder can be made
+    for url, data in ((server.link("open", name="t.obj"), b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"),
+                      (server.link("download/x.ply"), None), (server.link("download/x.usdc"), None)):
+        with pytest.raises(urllib.error.HTTPError) as exc:
+            urllib.request.urlopen(urllib.request.Request(url, data=data), timeout=60)
+        text = exc.value.read().decode()
+        assert exc.value.code == 507 and "temporary folder cannot hold it" in text and "\n" not in text.strip()
+        assert str(tmp_path) not in text
+
+
+def test_a_port_in_use_is_one_line_and_leaves_nothing_running():
+    import socket
+    import subprocess
+    import sys
+
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen(1)
+        port = taken.getsockname()[1]
+        p = subprocess.run([sys.executable, "-m", "shapeflow", "studio", "--no-browser", "--port", str(port),
+                            "example:spot"], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 2
+    assert p.stderr.splitlines() == [f"shapeflow studio: error: the studio cannot listen on 127.0.0.1:{port} "
+                                     "(Address already in use)"], p.stderr

@@ -78,6 +78,9 @@ class Hub:
         if V.size and float(np.abs(V).max()) > FLOAT32_MAX / 16:
             raise ParameterError(f"{name or 'the mesh'}: coordinates up to {np.abs(V).max():.3g} cannot be drawn "
                                  "in a browser (float32); scale the model first")
+        old = getattr(self, "session", None)
+        if old is not None and old is not session:
+            old.stop_family()           # one family solve at a time: the replaced session's ends
         self.session = session
         mesh = session.base             # what the page draws: the welded mesh
         self.tris = fan_triangles(mesh)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import asyncio
+import os
 import threading
 from typing import Sequence
 from urllib.parse import quote, urlencode
@@ -13,8 +14,58 @@ from ..mesh import Mesh
 from .security import is_loopback
 from .server import DEFAULT_LAMS, MAX_UPLOAD, guard_of, hub_of, make_app
 from .session import StudioSession
+from .upload import stop_readers
 
-__all__ = ["StudioServer", "studio", "IFRAME_HEIGHT"]
+__all__ = ["StudioServer", "studio", "IFRAME_HEIGHT", "KEEPALIVE", "connection_cap", "capped_runner"]
+
+#: seconds a connection may hold without a whole request (aiohttp closes it then)
+KEEPALIVE = 15.0
+
+
+def connection_cap() -> int:
+    """Connections the studio keeps open at once: 512, or half the files this process may open."""
+    try:
+        import resource
+
+        soft = resource.getrlimit(resource.RLIMIT_NOFILE)[0]
+        return max(16, min(512, soft // 2)) if soft != resource.RLIM_INFINITY else 512
+    except (ImportError, ValueError, OSError):
+        return 512
+
+
+def capped_runner(web, app, keepalive: float):
+    """aiohttp's runner for ``app`` whose server closes a connection past :func:`connection_cap` at
+    once, and one without a whole request after ``keepalive`` seconds."""
+    from aiohttp import web_server
+
+    cap = connection_cap()
+
+    class Capped(web_server.Server):
+        def connection_made(self, handler, transport):
+            super().connection_made(handler, transport)
+            if len(self.connections) > cap:
+                transport.abort()
+
+    class Runner(web.AppRunner):
+        async def _make_server(self):
+            server = await super()._make_server()
+            server.__class__ = Capped
+            return server
+
+    return Runner(app, access_log=None, shutdown_timeout=1.0, keepalive_timeout=float(keepalive))
+
+
+def _quiet_handler(loop, context) -> None:
+    """The studio loop's handler of errors no task awaited: running out of file descriptors while
+    accepting (a flood of connections) and connections reset are dropped; anything else gets one
+    line on stderr, never a traceback."""
+    import sys
+
+    exc = context.get("exception")
+    if isinstance(exc, (OSError, ConnectionError)) or "socket.accept" in str(context.get("message", "")):
+        return
+    text = f"{type(exc).__name__}: {exc}" if exc is not None else context.get("message", "")
+    print(f"shapeflow studio: {' '.join(str(text).split())[:200]}", file=sys.stderr)
 
 #: the height of the page in a notebook, pixels (the panel fits without scrolling from 760)
 IFRAME_HEIGHT = 780
@@ -29,12 +80,15 @@ class StudioServer:
     still needs the token); ``port=0`` picks a free port.  ``max_upload``: the largest file
     (bytes) a page may open; ``name``: what the page calls the mesh; ``token``: the token (a fresh
     random one by default); ``allow_hosts``: more names a browser may use for this machine;
-    ``outbox_limit`` and ``stall_seconds``: as for :func:`~shapeflow.studio.server.make_app`.
+    ``outbox_limit`` and ``stall_seconds``: as for :func:`~shapeflow.studio.server.make_app`;
+    ``keepalive``: seconds a connection may stay without a whole request (a connection that sends
+    part of a request and stops, slowloris, is closed then; at most :func:`connection_cap`
+    connections are open at once).
     """
 
     def __init__(self, mesh_or_session, *, host: str = "127.0.0.1", port: int = 0, lams=DEFAULT_LAMS,
                  solve: bool = True, max_upload: int = MAX_UPLOAD, name: str = "", token: str | None = None,
-                 allow_hosts=(), **queue):
+                 allow_hosts=(), keepalive: float = KEEPALIVE, **queue):
         try:
             from aiohttp import web
         except Exception as exc:   # not installed, or installed and broken
@@ -46,9 +100,11 @@ class StudioServer:
         if token is not None and (not isinstance(token, str) or len(token) < 16 or not token.isprintable()):
             raise ParameterError("token must be a string of at least 16 printable characters")
         self._loop = asyncio.new_event_loop()
-        self._app = make_app(session, lams=lams, solve=solve, max_upload=max_upload, name=name, token=token,
-                             host=host, port=port, allow_hosts=allow_hosts, **queue)
-        self._runner = web.AppRunner(self._app, access_log=None, shutdown_timeout=1.0)
+        self._loop.set_exception_handler(_quiet_handler)
+        # the family is solved once the server listens (a port in use leaves no task behind)
+        self._app = make_app(session, lams=lams, solve=solve, solve_at_start=False, max_upload=max_upload, name=name,
+                             token=token, host=host, port=port, allow_hosts=allow_hosts, **queue)
+        self._runner = capped_runner(web, self._app, keepalive)
         started = threading.Event()
         failure: list = []
 
@@ -62,8 +118,12 @@ class StudioServer:
                 guard_of(self._app).port = self.port
             except OSError as exc:
                 failure.append(exc)
+                self._loop.run_until_complete(self._runner.cleanup())
+                self._loop.close()
                 started.set()
                 return
+            if solve:
+                self._loop.call_soon(hub_of(self._app).solve)
             started.set()
             self._loop.run_forever()
 
@@ -71,7 +131,9 @@ class StudioServer:
         self._thread.start()
         started.wait(30)
         if failure:
-            raise ParameterError(f"the studio cannot listen on {host}:{port} ({failure[0].strerror or failure[0]})")
+            exc = failure[0]
+            why = os.strerror(exc.errno) if exc.errno else (exc.strerror or str(exc))
+            raise ParameterError(f"the studio cannot listen on {host}:{port} ({why})")
         self.host = host
         shown = "127.0.0.1" if host in ("0.0.0.0", "", "::") else host
         self.address = f"http://{'[' + shown + ']' if ':' in shown else shown}:{self.port}/"
@@ -105,8 +167,9 @@ class StudioServer:
     def stop(self) -> None:
         """End the server at once: open pages lose their connection, a page that stopped reading
         included (its socket is aborted, not waited for)."""
-        if not self._loop.is_running():
+        if self._loop.is_closed() or not self._loop.is_running():
             return
+        stop_readers()                    # a file being read for a page: its reader is killed, not awaited
 
         async def shutdown():
             hub = hub_of(self._app)

@@ -78,10 +78,12 @@ def _split_host(value: str) -> tuple[str, int | None] | None:
     else:
         host, port = value, None
     if port is not None:
-        if not port.isdigit() or len(port) > 5:
+        if not (port.isascii() and port.isdigit()) or len(port) > 5:
             return None
         port = int(port)
-    return host.lower().rstrip("."), port
+    if not host.isascii() or not host or host.endswith("."):    # "localhost." and friends: not our names
+        return None
+    return host.lower(), port
 
 
 def _is_ip(host: str) -> bool:
@@ -111,10 +113,13 @@ class Guard:
         if not self.everywhere:
             names.add(bind.strip("[]").lower())
         self.names = frozenset(names)
+        #: the page's cookie holds this, not the token: browsers send a cookie to every port of its
+        #: host, so its value must be worth nothing but the page and its scripts
+        self.cookie_value = secrets.token_urlsafe(32)
 
     @property
     def cookie(self) -> str:
-        """The name of the page's cookie (one per port: cookies do not tell ports apart)."""
+        """The name of the page's cookie (one per port, though cookies do not tell ports apart)."""
         return f"shapeflow-studio-{self.port}"
 
     # --- the three checks ---------------------------------------------
@@ -137,11 +142,13 @@ class Guard:
         return hmac.compare_digest(given.encode("utf-8", "replace"), self.token.encode())
 
     def token_ok(self, request, *, cookie_allowed: bool) -> bool:
-        given = [request.query.get("token"), request.headers.get(HEADER)]
-        if cookie_allowed:
-            given.append(request.cookies.get(self.cookie))
         good = self.token.encode()
-        return any(g is not None and hmac.compare_digest(g.encode("utf-8", "replace"), good) for g in given)
+        if any(g is not None and hmac.compare_digest(g.encode("utf-8", "replace"), good)
+               for g in (request.query.get("token"), request.headers.get(HEADER))):
+            return True
+        c = request.cookies.get(self.cookie)
+        return cookie_allowed and c is not None and hmac.compare_digest(c.encode("utf-8", "replace"),
+                                                                        self.cookie_value.encode())
 
     def refusal(self, request) -> tuple[int, str] | None:
         host = request.headers.get("Host")
@@ -150,12 +157,16 @@ class Guard:
                 "this studio answers only requests addressed to "
                 f"{' or '.join(sorted(self.names)) or 'an IP address'} on port {self.port} "
                 f"(Host: {_printable(host)}); start it with --allow-host NAME to add a name")
+        if not request.raw_path.startswith("/"):   # GET http://elsewhere/ ...: its authority would win
+            return 400, "this studio takes request targets as paths (/…), not absolute addresses"
         changes = request.method not in ("GET", "HEAD") or request.path == "/ws"
+        # the cookie opens the page and its scripts, nothing else (downloads need the token)
+        page = request.method in ("GET", "HEAD") and (request.path == "/" or request.path.startswith("/static/"))
         if not self.origin_ok(request.headers.get("Origin"), host):
             return 403, f"requests from another origin ({_printable(request.headers.get('Origin'))}) are refused"
         if changes and request.headers.get("Sec-Fetch-Site", "").lower() in ("cross-site", "same-site"):
             return 403, "requests from another site are refused"
-        if not self.token_ok(request, cookie_allowed=not changes):
+        if not self.token_ok(request, cookie_allowed=page and not changes):
             return 403, ("this studio needs its token: open the address shapeflow studio printed "
                          "(…/?token=…)" if request.method == "GET" else
                          "this request needs the studio's token (?token=… or the X-Shapeflow-Token header)")
@@ -170,24 +181,29 @@ def _printable(value) -> str:
 
 
 # --- names in URLs and downloads -------------------------------------------------
-_BAD_NAME = set('\0\r\n"\\/') | {chr(c) for c in range(32)} | {"\x7f"}
+#: characters no file name the studio takes or gives may hold (Windows' reserved ones included)
+_BAD_NAME = set('/\\"<>:|?*')
+#: Unicode categories refused in names: controls, format characters (bidi overrides such as
+#: U+202E), line and paragraph separators, surrogates, private use, unassigned
+_BAD_CATEGORIES = {"Cc", "Cf", "Zl", "Zp", "Cs", "Co", "Cn"}
 
 
 def check_name(name: str, what: str = "the file name") -> str | None:
     """Why ``name`` cannot name a file the studio receives or sends (None when it can): empty,
-    a path, a hidden name, control characters, quotes or backslashes, over 255 bytes."""
+    ``.`` or ``..``, a control or format character (U+0085, U+202E, U+2028...), a slash, a
+    backslash, one of ``" < > : | ? *``, over 255 bytes of UTF-8."""
+    import unicodedata
+
     if not name:
         return f"{what} is empty"
+    if name in (".", ".."):
+        return f"{what} is {name!r}"
     if any(c in _BAD_NAME for c in name):
-        return f"{what} holds a control character, a quote, a slash or a backslash"
-    if name.startswith(".") or name in ("..", "."):
-        return f"{what} starts with a dot"
+        return f'{what} holds a slash, a backslash or one of " < > : | ? *'
+    if any(unicodedata.category(c) in _BAD_CATEGORIES for c in name):
+        return f"{what} holds a control or formatting character"
     if len(name.encode("utf-8", "surrogatepass")) > 255:
         return f"{what} is longer than 255 bytes"
-    try:
-        name.encode("utf-8")
-    except UnicodeEncodeError:
-        return f"{what} is not valid Unicode"
     return None
 
 

@@ -100,7 +100,7 @@ class _Routes:
         token = given if given is not None and guard.token_is(given) else None
         resp = self.web.Response(text=page(token), content_type="text/html", charset="utf-8")
         if token is not None:     # the page's scripts load with the cookie, or with the token in their URLs
-            resp.set_cookie(guard.cookie, guard.token, httponly=True, samesite="Strict", path="/")
+            resp.set_cookie(guard.cookie, guard.cookie_value, httponly=True, samesite="Strict", path="/")
         return resp
 
     async def socket(self, request):
@@ -156,13 +156,16 @@ class _Routes:
             hub.close_stroke()
             session = hub.session
             mesh, mark = session.saved_mesh()
-        with tempfile.TemporaryDirectory(prefix="shapeflow-studio-") as tmp:
-            path = os.path.join(tmp, name)
-            try:
-                await _in_thread(lambda: save(path, mesh))
-            except ShapeflowError as exc:       # e.g. the format's optional dependency is missing
-                raise web.HTTPBadRequest(text=str(exc).replace(tmp + os.sep, "")) from None
-            body = Path(path).read_bytes()
+        try:
+            with tempfile.TemporaryDirectory(prefix="shapeflow-studio-") as tmp:
+                path = os.path.join(tmp, name)
+                try:
+                    await _in_thread(lambda: save(path, mesh))
+                    body = Path(path).read_bytes()
+                except Exception as exc:        # noqa: BLE001 - every failure is one line for the page
+                    raise _refusal(web, name, exc, tmp) from None
+        except OSError as exc:                  # the temporary folder itself: full or not writable
+            raise _refusal(web, name, exc, None) from None
         session.mark_saved(mark)                        # downloaded: no unsaved changes from here
         await hub.broadcast(hub.state())
         return web.Response(body=body, content_type="application/octet-stream",
@@ -188,7 +191,10 @@ class _Routes:
                    f"start it with --max-upload to change that)")
         if request.content_length is not None and request.content_length > limit:
             raise web.HTTPRequestEntityTooLarge(max_size=limit, actual_size=request.content_length, text=too_big)
-        tmp = tempfile.TemporaryDirectory(prefix="shapeflow-studio-")
+        try:
+            tmp = tempfile.TemporaryDirectory(prefix="shapeflow-studio-")
+        except OSError as exc:
+            raise _refusal(web, name, exc, None) from None
         path, size = os.path.join(tmp.name, name), 0
         try:
             with open(path, "wb") as f:
@@ -197,6 +203,9 @@ class _Routes:
                     if size > limit:
                         raise web.HTTPRequestEntityTooLarge(max_size=limit, actual_size=size, text=too_big)
                     f.write(chunk)
+        except OSError as exc:                  # a full temporary folder
+            tmp.cleanup()
+            raise _refusal(web, name, exc, tmp.name) from None
         except BaseException:
             tmp.cleanup()
             raise
@@ -217,8 +226,8 @@ class _Routes:
                 if self.solve:
                     hub.solve()
                 await hub.broadcast(*hub.mesh_frames())
-        except ShapeflowError as exc:
-            raise self.web.HTTPBadRequest(text=str(exc)) from None
+        except Exception as exc:                # noqa: BLE001 - every failure is one line for the page
+            raise _refusal(self.web, name, exc, os.path.dirname(path)) from None
         return self.web.json_response({"n_vertices": hub.n_vertices, "n_faces": hub.n_faces,
                                        "welded": new.welded})
 
@@ -238,9 +247,29 @@ class _Routes:
                 hub.session.set_weights(w)
                 hub.changed()
                 await hub.broadcast(frame(b"WGT0", hub.session.weights, "<f4"), hub.state())
-        except ShapeflowError as exc:
-            raise self.web.HTTPBadRequest(text=str(exc)) from None
+        except Exception as exc:                # noqa: BLE001 - every failure is one line for the page
+            raise _refusal(self.web, name, exc, os.path.dirname(path)) from None
         return self.web.json_response({"n_vertices": s.n_input_vertices})
+
+
+def _refusal(web, name: str, exc: BaseException, tmp: str | None):
+    """The one-line answer to a failed upload or download: 400 for what the file or the request holds
+    (a :class:`ShapeflowError`), 507 for a full or unwritable temporary folder, 500 for anything
+    else (also said on the server's stderr in one line); never a temporary path, never a traceback."""
+    import sys
+
+    if isinstance(exc, web.HTTPException):
+        return exc
+    text = " ".join(str(exc).split())
+    if tmp:
+        text = text.replace(tmp + os.sep, "").replace(tmp, "")
+    if isinstance(exc, ShapeflowError) and not isinstance(exc, OSError):
+        return web.HTTPBadRequest(text=text if text.startswith(name) else f"{name}: {text}")
+    if isinstance(exc, OSError):
+        why = exc.strerror or text or type(exc).__name__
+        return web.HTTPInsufficientStorage(text=f"{name}: the studio's temporary folder cannot hold it ({why})")
+    print(f"shapeflow studio: internal error on {name}: {type(exc).__name__}: {text[:200]}", file=sys.stderr)
+    return web.HTTPInternalServerError(text=f"{name}: internal error ({type(exc).__name__}: {text[:200]})")
 
 
 def _guard_middleware(web, guard: Guard):
@@ -265,7 +294,8 @@ def _guard_middleware(web, guard: Guard):
 
 def make_app(session: StudioSession, *, lams=DEFAULT_LAMS, solve: bool = True, max_upload: int = MAX_UPLOAD,
              name: str = "", token: str | None = None, host: str = "127.0.0.1", port: int = 0,
-             allow_hosts=(), outbox_limit: int = OUTBOX_LIMIT, stall_seconds: float = STALL):
+             allow_hosts=(), outbox_limit: int = OUTBOX_LIMIT, stall_seconds: float = STALL,
+             solve_at_start: bool | None = None):
     """The aiohttp application serving ``session`` (the family over ``lams`` is solved at start;
     ``name``: what the page calls the mesh, and the stem of downloads).
 
@@ -274,7 +304,9 @@ def make_app(session: StudioSession, *, lams=DEFAULT_LAMS, solve: bool = True, m
     :class:`~shapeflow.studio.security.Guard` every request passes.  ``max_upload`` is the largest
     file (bytes) a page may open or load weights from; larger uploads are refused with a message
     and nothing is kept.  ``outbox_limit`` (bytes) and ``stall_seconds`` bound what waits for one
-    tab and how long one send to it may take (:mod:`~shapeflow.studio.outbox`).
+    tab and how long one send to it may take (:mod:`~shapeflow.studio.outbox`).  ``solve`` solves
+    the family of every mesh the server shows; ``solve_at_start`` (default: ``solve``) whether the
+    app does it for the first mesh when it starts (:class:`StudioServer` does it once it listens).
     """
     web, WSMsgType = _web()
     hub = Hub(session, sorted((float(x) for x in lams), reverse=True), name)
@@ -284,7 +316,7 @@ def make_app(session: StudioSession, *, lams=DEFAULT_LAMS, solve: bool = True, m
     guard = Guard(token or new_token(), host, port, allow_hosts=allow_hosts)
 
     async def on_startup(app):
-        if solve:
+        if solve if solve_at_start is None else solve_at_start:
             hub.solve()
 
     app = web.Application(client_max_size=MAX_MESSAGE, middlewares=[_guard_middleware(web, guard)])

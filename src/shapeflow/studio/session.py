@@ -74,6 +74,9 @@ class StudioSession:
         from ..mesh.convert import as_mesh
 
         mesh = as_mesh(mesh, "the studio's mesh")
+        if mesh.n_faces == 0:
+            raise ParameterError(f"{mesh.metadata.get('name') or 'the mesh'} has no faces "
+                                 f"({mesh.n_vertices:,} points): the studio edits surfaces")
         self._lock = threading.RLock()
         self._input = mesh
         mesh = weld_if_split(mesh)      # seams and soups: one vertex per point, as the command line does
@@ -425,15 +428,14 @@ class StudioSession:
                         why = str(exc) if isinstance(exc, ShapeflowError) else f"{type(exc).__name__}: {exc}"
                         self._status.state, self._status.error = "failed", why
 
-        with self._lock:
+        with self._lock:                   # the swap and the start at once: a thread joined is a started one
             previous, self._thread = self._thread, None
+            if not wait:
+                self._thread = threading.Thread(target=work, args=(previous,), name="shapeflow-studio-family",
+                                                daemon=True)
+                self._thread.start()
         if wait:
             work(previous)
-        else:
-            t = threading.Thread(target=work, args=(previous,), name="shapeflow-studio-family", daemon=True)
-            with self._lock:
-                self._thread = t
-            t.start()
 
     def stop_family(self) -> None:
         """Stop a running solve at its next progress step (its result is dropped)."""

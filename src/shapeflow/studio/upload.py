@@ -17,19 +17,37 @@ import os
 import pickle
 import subprocess
 import sys
+import threading
 
 from ..errors import MeshError
 
-__all__ = ["read_upload", "memory_limit", "time_limit"]
+__all__ = ["read_upload", "memory_limit", "time_limit", "stop_readers"]
+
+#: the reading children under way (every studio of this process), so that a studio ending kills them
+_CHILDREN: set = set()
+_LOCK = threading.Lock()
 
 
-def memory_limit(size: int) -> int:
+def stop_readers() -> None:
+    """Kill every reading child under way (the studio is ending: Ctrl-C must not wait for them)."""
+    with _LOCK:
+        children = list(_CHILDREN)
+    for p in children:
+        try:
+            p.kill()
+        except OSError:
+            pass
+
+
+def memory_limit(size: int, name: str = "") -> int:
     """Memory the child may take for reading a file of ``size`` bytes, beyond what its interpreter and
-    libraries hold once imported: 256 MiB plus 24 × the file (a text mesh's arrays and their
-    temporaries), at most what the machine has free."""
+    libraries hold once imported: 256 MiB (1 GiB for USD, whose library maps its plugins and thread
+    pools when it first opens a stage: 512 MiB more than that were measured for a 3 K-vertex stage)
+    plus 24 × the file (a text mesh's arrays and their temporaries), at most what the machine has free."""
     from ..budget import available_bytes
 
-    want = (256 << 20) + 24 * int(size)
+    base = (1 << 30) if os.path.splitext(name)[1].lower() in (".usd", ".usda", ".usdc") else (256 << 20)
+    want = base + 24 * int(size)
     room = available_bytes()
     return want if room is None else max(min(want, room), 64 << 20)
 
@@ -45,17 +63,24 @@ def read_upload(path: str, name: str, *, kind: str = "mesh", n_vertices: int = 0
     ``weight`` attribute, ``n_vertices`` of them) in the uploaded file ``path``, read by a bounded
     child process.  Every failure is a :class:`~shapeflow.errors.MeshError` naming ``name``."""
     size = os.path.getsize(path)
-    memory = memory_limit(size) if memory is None else int(memory)
+    memory = memory_limit(size, name) if memory is None else int(memory)
     seconds = time_limit(size) if seconds is None else float(seconds)
     out = path + ".result"
     cmd = [sys.executable, "-m", "shapeflow.studio.upload", kind, str(int(n_vertices)), str(memory), path, out]
     env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
            "NUMBA_NUM_THREADS": "1", "PYTHONWARNINGS": "ignore"}
+    proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env)
+    with _LOCK:
+        _CHILDREN.add(proc)
     try:
-        proc = subprocess.run(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                              timeout=seconds, env=env)
+        _, err = proc.communicate(timeout=seconds)
     except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
         raise MeshError(f"{name}: reading it took longer than the studio allows ({seconds:.0f} s)") from None
+    finally:
+        with _LOCK:
+            _CHILDREN.discard(proc)
     try:
         if proc.returncode == 0:
             with open(out, "rb") as f:
@@ -63,10 +88,12 @@ def read_upload(path: str, name: str, *, kind: str = "mesh", n_vertices: int = 0
     finally:
         if os.path.exists(out):
             os.unlink(out)
-    err = proc.stderr.decode("utf-8", "replace").strip().splitlines()
+    err = err.decode("utf-8", "replace").strip().splitlines()
     line = err[-1] if err else ""
     if proc.returncode == 3 and line:         # the reader's own refusal
         return _refusal(line, path, name)
+    if proc.returncode == 5:
+        raise MeshError(f"{name}: no room to read it: the temporary folder is full ({line or 'no space left'})")
     if proc.returncode == 4:
         raise MeshError(f"{name}: reading it needs more memory than the studio allows "
                         f"({memory / 2**20:,.0f} MiB for this file)")
@@ -124,8 +151,12 @@ def _child(argv: list[str]) -> int:
     _limit_memory(int(memory))
     try:
         result = _weights(path, int(n_vertices)) if kind == "weights" else load(path, external_files=False)
-        with open(out, "wb") as f:
-            pickle.dump(result, f, protocol=pickle.HIGHEST_PROTOCOL)
+        try:
+            with open(out, "wb") as f:
+                pickle.dump(result, f, protocol=pickle.HIGHEST_PROTOCOL)
+        except OSError as exc:             # the temporary folder is full
+            print(exc.strerror or exc, file=sys.stderr)
+            return 5
         return 0
     except MemoryError:
         return 4

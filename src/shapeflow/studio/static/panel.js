@@ -156,7 +156,10 @@ function formats(exts) {              // what the server reads and writes: the d
 }
 $("download").onclick = async () => {
   clearError();
-  const name = `${(studio.name || "shapeflow-studio").replace(/\.[^.]*$/, "")}-studio.${$("format").value}`;
+  // the opened file's stem, with what no file name may hold (studio/security.py) as "_"
+  const stem = (studio.name || "shapeflow-studio").replace(/\.[^.]*$/, "")
+    .replace(/[\/\\"<>:|?*\p{Cc}\p{Cf}\p{Zl}\p{Zp}\p{Co}\p{Cn}]/gu, "_") || "shapeflow-studio";
+  const name = `${stem}-studio.${$("format").value}`;
   const [blob, why] = await fetchFile(name);
   if (why) { showError(why); return; }
   const a = document.createElement("a");
