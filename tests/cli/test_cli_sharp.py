@@ -342,9 +342,9 @@ def test_a_batch_shares_the_options_and_its_memory_estimate_is_unchanged(box, tm
     path, info, pairs, _, _ = box
     np.savetxt(tmp_path / "e.txt", pairs, fmt="%d")
     op = parse_operation(f"smooth -s 20 --feature-angle 30 --sharp-edges {tmp_path / 'e.txt'} --keep-marked-edges "
-                         "--then subdivide -l 1")
-    smooth, _ = op.options
-    assert (smooth.feature_angle, smooth.keep_marked_edges) == (30.0, True)
+                         "--then subdivide -l 1 --no-creases")
+    smooth, sub = op.options
+    assert (smooth.feature_angle, smooth.keep_marked_edges, sub.no_creases) == (30.0, True, True)
     assert np.array_equal(smooth.sharp_file.pairs, pairs)
     plain = parse_operation("smooth -s 20 --then subdivide -l 1")
     for n in (1_000, 5_000_000):
