@@ -265,6 +265,8 @@ EDGE_FILES = {
     "notedge.txt": "0 1\n0 55\n0 54\n",
     "empty.txt": "# nothing\n\n",
     "latin.txt": b"0 1 \xe9\n",
+    "huge.txt": "0 1\n1e30 2\n",
+    "bom.txt": b"\xef\xbb\xbf\n0 1\n0 55\n",
 }
 
 
@@ -277,11 +279,17 @@ EDGE_FILES = {
     ("notedge.txt", "--sharp-edges '{p}': line 2: 0 55 is not an edge of the mesh (2 such lines)"),
     ("empty.txt", "--sharp-edges '{p}' lists no edge; expected 'i j' (two vertex numbers) per line"),
     ("latin.txt", "--sharp-edges '{p}': not UTF-8 text"),
+    ("huge.txt", "--sharp-edges '{p}': line 2: 1e+30 2 is not a pair of vertex numbers (whole numbers from 0)"),
+    ("bom.txt", "--sharp-edges '{p}': line 3: 0 55 is not an edge of the mesh"),
     ("missing.txt", "--sharp-edges '{p}': no such file"),
     ("wide.npy", "--sharp-edges '{p}': must be a (k, 2) array of numbers, 'i j' (two vertex numbers) per row; "
                  "got shape (3, 3) of float64"),
     ("far.npy", "--sharp-edges '{p}': row 1: vertex 56 is outside the mesh's 56 vertices (0-based: 0 .. 55)"),
     ("fake.npy", "--sharp-edges '{p}': not a NumPy .npy file (its first bytes are not NumPy's)"),
+    ("trunc.npy", "--sharp-edges '{p}': the header declares 1000000000000 rows, but only 0 bytes follow "
+                  "(a truncated file)"),
+    ("object.npy", "--sharp-edges '{p}': must be a (k, 2) array of numbers, 'i j' (two vertex numbers) per row; "
+                   "got shape (1, 2) of object"),
 ])
 def test_edge_file_errors_name_the_option_the_file_and_the_line(box, tmp_path, capsys, name, line):
     path = box[0]
@@ -294,6 +302,11 @@ def test_edge_file_errors_name_the_option_the_file_and_the_line(box, tmp_path, c
         np.save(p, np.array([[0, 1], [0, 56]]))
     elif name == "fake.npy":
         p.write_text("0 1\n")
+    elif name == "trunc.npy":                    # a hostile header: 16 TB declared, nothing after it
+        with open(p, "wb") as f:
+            np.lib.format.write_array_header_1_0(f, {"descr": "<f8", "fortran_order": False, "shape": (10**12, 2)})
+    elif name == "object.npy":
+        np.save(p, np.array([[0, None]], dtype=object), allow_pickle=True)
     out = tmp_path / "out.obj"
     code, stdout, err = run_cli(["smooth", path, out, "-s", "5", "--sharp-edges", p], capsys)
     assert (code, stdout, err) == (2, "", f"shapeflow smooth: error: {line.format(p=p)}\n")

@@ -100,25 +100,43 @@ def _first_bad_line(text: str, columns: int, what: str) -> str:
     return f"expected {what} on every line"
 
 
+def _read_npy(path: str, where: str, columns: int, what: str) -> np.ndarray:
+    """A (k, columns) array of numbers from a .npy file, its header checked against the file's size
+    before NumPy allocates anything."""
+    fmt = np.lib.format
+    with open(path, "rb") as f:
+        if f.read(6) != b"\x93NUMPY":
+            raise ParameterError(f"{where}: not a NumPy .npy file (its first bytes are not NumPy's)")
+        f.seek(0)
+        try:
+            version = fmt.read_magic(f)
+            header = {(1, 0): fmt.read_array_header_1_0, (2, 0): fmt.read_array_header_2_0}.get(version)
+            if header is None:
+                raise ValueError(f"format version {version[0]}.{version[1]}; 1.0 and 2.0 are read")
+            shape, fortran, dtype = header(f)
+        except (ValueError, EOFError, SyntaxError, TypeError) as exc:
+            raise ParameterError(f"{where}: not a valid .npy file ({str(exc).splitlines()[0]})") from None
+        if dtype.kind not in "iuf" or len(shape) != 2 or shape[1] != columns:
+            raise ParameterError(f"{where}: must be a (k, {columns}) array of numbers, {what} per row; got "
+                                 f"shape {shape} of {dtype}")
+        left = os.fstat(f.fileno()).st_size - f.tell()
+        if shape[0] * columns * dtype.itemsize > left:
+            raise ParameterError(f"{where}: the header declares {shape[0]} rows, but only {left} bytes follow "
+                                 "(a truncated file)")
+        f.seek(0)
+        return np.load(f, allow_pickle=False).astype(np.float64)
+
+
 def _read_rows(path: str, option: str, columns: int, what: str) -> tuple[np.ndarray, np.ndarray | None]:
     """The numbers of an edge file as a (k, columns) float array, and each row's line (None for .npy)."""
     where = f"{option} '{path}'"
     if path.lower().endswith(".npy"):
-        with open(path, "rb") as f:
-            if f.read(6) != b"\x93NUMPY":
-                raise ParameterError(f"{where}: not a NumPy .npy file (its first bytes are not NumPy's)")
-        try:
-            a = np.load(path, allow_pickle=False)
-        except (ValueError, OSError, EOFError) as exc:
-            raise ParameterError(f"{where}: not a NumPy array file ({str(exc).splitlines()[0]})") from None
-        if not isinstance(a, np.ndarray) or a.dtype.kind not in "iuf" or a.ndim != 2 or a.shape[1] != columns:
-            got = f"shape {a.shape} of {a.dtype}" if isinstance(a, np.ndarray) else type(a).__name__
-            raise ParameterError(f"{where}: must be a (k, {columns}) array of numbers, {what} per row; got {got}")
-        return a.astype(np.float64), None
+        return _read_npy(path, where, columns, what), None
     with open(path, "rb") as f:
         data = f.read()
+    data = data[3:] if data.startswith(b"\xef\xbb\xbf") else data          # a byte-order mark
     try:
-        text = data.decode("utf-8-sig")
+        text = data.decode("utf-8")
     except UnicodeDecodeError:
         raise ParameterError(f"{where}: not UTF-8 text") from None
     lines = _data_lines(data)
@@ -147,7 +165,7 @@ def read_edge_file(path: str, option: str, *, values: bool = False) -> EdgeFile:
     if a.shape[0] == 0:
         raise ParameterError(f"{option} '{path}' lists no edge; expected {what} per line")
     p = a[:, :2]
-    bad = np.flatnonzero(~(np.isfinite(p) & (p == np.round(p)) & (p >= 0)).all(axis=1))
+    bad = np.flatnonzero(~(np.isfinite(p) & (p == np.round(p)) & (p >= 0) & (p < 2.0 ** 53)).all(axis=1))
     if bad.size:
         i = int(bad[0])
         raise ParameterError(f"{ef.where(i)}: {p[i, 0]:g} {p[i, 1]:g} is not a pair of vertex numbers "
