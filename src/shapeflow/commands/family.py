@@ -214,7 +214,8 @@ def run(o: FamilyOptions, source: str, target: str, report: Reporter) -> None:
     names, paths = _member_paths(o, source, outdir)
     mesh = load_mesh(source, report)
     with option_names(OPTION_NAMES):
-        operand, kw, restore = welded_for_operator(mesh, o.flow_kwargs(mesh), "family", o.quiet, report)
+        operand, kw, restore = welded_for_operator(mesh, o.flow_kwargs(mesh, source, "family", report), "family",
+                                                   o.quiet, report)
     outdir.mkdir(exist_ok=True)
     for p in (paths[0], o.image):   # every output writable before any work (the folder exists now)
         if p:

@@ -4,7 +4,8 @@ shape-changing ones, and what every picture path and size is checked with.
 Each shape-changing command calls one function here at its end:
 
 * ``flow`` / ``enhance`` / ``smooth``: :func:`flow_image` (before | after, coloured by
-  mean curvature with one shared range, so stronger features show as stronger colour);
+  mean curvature with one shared range, so stronger features show as stronger colour; the sharp
+  edges the flow kept drawn as lines);
 * ``subdivide``: :func:`subdivide_image` (cage | subdivided, with polygon edges);
 * ``family`` (figure 1 of the paper): :func:`family_image` (blue → red strip);
 * ``brush``: :func:`before_after`.
@@ -62,26 +63,28 @@ def add_image_options(parser, help: str = "also draw input and result side by si
 
 def before_after(path: str, before, after, *, label_before: str = "input", label_after: str = "result",
                  color="curvature", edges=False, shading="smooth", view=VIEW, up: str = "auto",
-                 quiet: bool = False, report: Reporter | None = None) -> None:
+                 quiet: bool = False, report: Reporter | None = None, feature_lines=None) -> None:
     """Write ``before`` and ``after`` side by side with one camera (and one colour range).
 
-    ``edges`` and ``shading`` may be one value or a pair (before, after)."""
+    ``edges`` and ``shading`` may be one value or a pair (before, after); ``feature_lines``: vertex
+    pairs drawn as lines on both (:func:`shapeflow.rendering.render_meshes`)."""
     from ..rendering import render_meshes
 
     check_picture_path(path)
     up = up_axis(up, before)
     render_meshes([before, after], path, labels=[label_before, label_after], color=color, edges=edges,
-                  shading=shading, view=view, up=up, size=PANEL)
+                  shading=shading, view=view, up=up, size=PANEL, feature_lines=feature_lines)
     if not quiet and report is not None:
         report.message(f"image -> {path}")
 
 
-def flow_image(o, before, after, lam: float, report: Reporter) -> None:
-    """``--image`` of flow/enhance/smooth: input and result coloured by mean curvature."""
+def flow_image(o, before, after, lam: float, report: Reporter, sharp=None) -> None:
+    """``--image`` of flow/enhance/smooth: input and result coloured by mean curvature, the ``sharp``
+    edges (vertex pairs) as lines."""
     what = "smoothed" if lam > 0 else "enhanced"
     label = f"{what}, λ={lam:g}" + (f", {o.iterations} iterations" if o.iterations != 1 else "")
     before_after(o.image, before, after, label_before="input", label_after=label, up=o.image_up, quiet=o.quiet,
-                 report=report)
+                 report=report, feature_lines=sharp)
 
 
 def subdivide_image(o, before, after, report: Reporter) -> None:

@@ -13,7 +13,10 @@ from .common import load_mesh
 from .images import check_png, parse_size, up_axis
 from .report import Reporter
 
-__all__ = ["RenderOptions", "add_parser", "run"]
+__all__ = ["RenderOptions", "add_parser", "parse_feature_lines", "run"]
+
+#: the angle ``--feature-lines`` without a value stands for (degrees)
+DEFAULT_FEATURE_ANGLE = 30.0
 
 
 @dataclass(frozen=True)
@@ -37,8 +40,11 @@ class RenderOptions:
     no_colorbar: bool = False
     framing: str = "shared"
     quiet: bool = False
+    feature_lines: float | str | None = None     #: an angle in degrees, or "marked": the edges the file marks
 
     def __post_init__(self):
+        if self.feature_lines is not None:
+            object.__setattr__(self, "feature_lines", parse_feature_lines(self.feature_lines))
         if isinstance(self.clim, str):
             object.__setattr__(self, "clim", parse_range(self.clim))
         if isinstance(self.grid, str) and self.grid != "auto":
@@ -51,10 +57,31 @@ class RenderOptions:
 
 
 class _MeshesThenPicture(argparse.Action):
-    """``PATH [PATH ...]``: the meshes (``input``), then the picture (``output``)."""
+    """``PATH [PATH ...]``: the meshes (``input``), then the picture (``output``); a path that
+    ``--feature-lines`` took for its value comes first."""
 
     def __call__(self, parser, namespace, values, option_string=None):
+        values = [*getattr(namespace, "stray_paths", []), *values]
         namespace.input, namespace.output = list(values[:-1]), values[-1]
+
+
+class _FeatureLines(argparse.Action):
+    """``--feature-lines [DEG|marked]``: 30° without a value; a word that is neither (``--feature-lines
+    part.obj out.png``) is a path, given back to the paths."""
+
+    def __call__(self, parser, namespace, value, option_string=None):
+        if value is not None and not _is_feature_value(value) and any(c in value for c in "./\\:"):
+            namespace.stray_paths = [*getattr(namespace, "stray_paths", []), value]
+            value = None
+        namespace.feature_lines = DEFAULT_FEATURE_ANGLE if value is None else value
+
+
+def _is_feature_value(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return text == "marked"
+    return True
 
 
 def add_parser(sub) -> None:
@@ -81,6 +108,9 @@ def add_parser(sub) -> None:
                    help="the axis the model faces (default auto: the bundled examples' own, else +z with y up, "
                         "as glTF and Blender's exporters, and -y with z up, as in Blender)")
     p.add_argument("--edges", "-e", action="store_true", help="draw polygon edges (quads as quads)")
+    p.add_argument("--feature-lines", nargs="?", action=_FeatureLines, default=None, metavar="DEG|marked",
+                   help="draw sharp edges as lines: those whose faces bend by more than DEG degrees (default 30), "
+                        "or 'marked': those the file marks (OBJ smoothing-group borders, 't crease' tags)")
     p.add_argument("--size", "-s", default=None, metavar="WxH",
                    help="picture size for one mesh (default 800x600), size of each panel for several "
                         "(default 400x400)")
@@ -118,6 +148,19 @@ def parse_range(text: str):
     return lo, hi
 
 
+def parse_feature_lines(value) -> float | str:
+    """``--feature-lines``: an angle in [0, 180] degrees, or ``"marked"``."""
+    if value == "marked":
+        return value
+    try:
+        angle = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"--feature-lines must be an angle in degrees or 'marked', got {value!r}") from None
+    from .. import params
+
+    return params.number("--feature-lines", angle, lo=0.0, hi=180.0)
+
+
 def reference_of(color: str) -> str | None:
     """The reference mesh of ``displacement:REF``, None for any other colour."""
     if color.startswith("displacement:"):
@@ -152,8 +195,14 @@ def run(o: RenderOptions, source: str | Sequence[str], target: str, report: Repo
         raise ParameterError(f"--labels: {len(o.labels)} titles for {len(meshes)} meshes")
     up = up_axis(o.up, meshes[0])
     front = None if o.front == "auto" else o.front
+    lines = o.feature_lines
+    if lines == "marked":          # the edges each file marks, a malformed tag told with its file's name
+        from .features import marked_edges
+
+        lines = [m.topology.edges[marked_edges(m, a).sharp] for m, a in zip(meshes, inputs)]
+        lines = lines[0] if len(meshes) == 1 and o.grid is None else lines
     common = dict(color=color, reference=reference, view=o.view, up=up, front=front, edges=o.edges,
-                  shading=o.shading, colorbar=not o.no_colorbar, cmap=o.cmap, clim=o.clim)
+                  shading=o.shading, colorbar=not o.no_colorbar, cmap=o.cmap, clim=o.clim, feature_lines=lines)
     if len(meshes) == 1 and o.grid is None:
         label = None if o.no_labels or not o.labels else o.labels[0]
         img = render(meshes[0], out, size=o.size or (800, 600), label=label, **common)
