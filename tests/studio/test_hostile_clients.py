@@ -378,7 +378,8 @@ def test_usd_uploads_are_read(tmp_path, ext):
 
 @pytest.mark.parametrize("name,body,words", [
     ("points.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                   b"end_header\n0 0 0\n1 0 0\n0 1 0\n", "points.ply: the mesh has no faces (3 points): the studio edits surfaces"),
+                   b"end_header\n0 0 0\n1 0 0\n0 1 0\n",
+     "points.ply: the mesh has no faces (3 points): the studio edits surfaces"),
     ("points.obj", b"v 0 0 0\nv 1 0 0\n", "has no faces"),
 ])
 def test_a_file_without_faces_is_refused_and_nothing_changes(server, name, body, words):
