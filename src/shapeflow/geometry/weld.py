@@ -33,23 +33,56 @@ __all__ = ["WELD_TOL", "weld", "weld_map", "unweld", "needs_weld", "may_need_wel
 WELD_TOL = 1e-7
 
 
-def weld_map(vertices: np.ndarray, tol: float, diagonal: float) -> np.ndarray:
-    """(n,) the welded vertex of each vertex: groups of vertices joined by distances <= tol × diagonal,
-    numbered in order of their first vertex."""
+def _unit_copy(vertices: np.ndarray) -> tuple[np.ndarray, float]:
+    """The vertices translated to their bounding box's low corner and scaled by a power of two so
+    that the box's diagonal lies in [1, 2) (exact apart from the translation, whose rounding is the
+    same at every power-of-two scale), and that diagonal.  Works for any finite coordinates, 1e-300
+    or 1e300 alike: nothing is squared before the rescaling, so nothing over- or underflows."""
+    V = np.asarray(vertices, dtype=np.float64)
+    if not np.isfinite(V).all():
+        bad = int(np.flatnonzero(~np.isfinite(V).all(axis=1))[0])
+        raise ParameterError(f"vertex {bad} has a non-finite coordinate ({V[bad].tolist()}); "
+                             "coincident vertices cannot be found")
+    m = max(float(V.max()), -float(V.min()))
+    if m == 0.0:
+        return np.zeros_like(V), 0.0
+    V = np.ldexp(V, -int(np.frexp(m)[1]))          # max |V| in [0.5, 1): the box spans at most 2
+    lo = V.min(axis=0)
+    D = V - lo
+    ext = D.max(axis=0)
+    diag = float(np.sqrt(ext @ ext))   # ext >= 2^-53 of max |V| where nonzero: no underflow
+    if diag == 0.0:
+        return D, 0.0
+    e = int(np.frexp(diag)[1]) - 1
+    return np.ldexp(D, -e), float(np.ldexp(diag, -e))
+
+
+def weld_map(vertices: np.ndarray, tol: float, diagonal: float | None = None) -> np.ndarray:
+    """(n,) the welded vertex of each vertex: groups of vertices joined by distances <= tol × the
+    bounding-box diagonal, numbered in order of their first vertex.
+
+    The neighbour search runs on a copy translated to the box's corner and scaled by a power of two
+    to a diagonal in [1, 2), so coordinates of any finite magnitude (1e-300 .. 1e300, or ±1e308 whose
+    diagonal overflows) weld as the same shape at scale 1 does: the same map.  ``diagonal`` (the
+    caller's measure of it, which may have over- or underflowed) is not used; the diagonal is
+    measured on the copy.
+    """
+    del diagonal
     n = vertices.shape[0]
     if n == 0:
         return np.zeros(0, np.int64)
-    r = tol * diagonal
+    D, diag = _unit_copy(vertices)
+    r = tol * diag
     if r > 0:
         from scipy.sparse import coo_matrix
         from scipy.sparse.csgraph import connected_components
         from scipy.spatial import cKDTree
 
-        pairs = cKDTree(vertices).query_pairs(r, output_type="ndarray")
+        pairs = cKDTree(D).query_pairs(r, output_type="ndarray")
         g = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
         _, labels = connected_components(g, directed=False)
     else:   # exact coincidence only
-        _, labels = np.unique(vertices, axis=0, return_inverse=True)
+        _, labels = np.unique(D, axis=0, return_inverse=True)
         labels = labels.reshape(-1)
     # renumber the groups by their first vertex (stable: welding a welded mesh changes nothing)
     first = np.full(labels.max() + 1, n, np.int64)
@@ -62,7 +95,7 @@ def weld_map(vertices: np.ndarray, tol: float, diagonal: float) -> np.ndarray:
 
 def needs_weld(mesh: Mesh, *, tol: float = WELD_TOL) -> bool:
     """Whether some vertices of ``mesh`` coincide (within ``tol`` × the diagonal): seams or a soup."""
-    m = weld_map(mesh.vertices, tol, mesh.diagonal)
+    m = weld_map(mesh.vertices, tol)
     return bool(m.size) and int(m.max()) + 1 < mesh.n_vertices
 
 
@@ -99,7 +132,7 @@ def weld(mesh: Mesh, *, tol: float = WELD_TOL) -> Mesh:
         raise ParameterError(f"tol must be a number, got {tol!r}") from None
     if not (0.0 <= tol < 1.0):
         raise ParameterError(f"tol must be in [0, 1) (relative to the diagonal), got {tol!r}")
-    wmap = weld_map(mesh.vertices, tol, mesh.diagonal)
+    wmap = weld_map(mesh.vertices, tol)
     k = int(wmap.max()) + 1 if wmap.size else 0
     first = np.full(k, mesh.n_vertices, np.int64)
     np.minimum.at(first, wmap, np.arange(mesh.n_vertices))

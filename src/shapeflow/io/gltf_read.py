@@ -7,7 +7,7 @@ import warnings
 import numpy as np
 
 from ..errors import DataLossWarning, MeshError
-from ..geometry.placement import place, place_normals
+from ..geometry.placement import orientation, place, place_normals
 from ..mesh import Mesh
 from .gltf_access import accessor, dequantize, read_raw
 from .gltf_scene import mesh_placements
@@ -109,7 +109,7 @@ def _block_positions(r: _Reader, blocks: dict) -> list:
     out, base = [], 0
     for b in blocks.values():
         M = b["matrix"]
-        if abs(np.linalg.det(M[:3, :3])) < 1e-300:
+        if not orientation(M):
             raise MeshError(f"{r.name}: mesh {b['mesh']} is shown by a node whose transform is singular (scale 0)")
         with np.errstate(over="ignore", invalid="ignore"):
             pos = place(r.values(b["position"], "POSITION"), M)

@@ -47,8 +47,9 @@ from typing import BinaryIO
 import numpy as np
 
 from ..errors import DataLossWarning, MeshError
-from ..geometry.placement import place, place_normals, unplace, unplace_normals
+from ..geometry.placement import orientation, place, place_normals, unplace, unplace_normals
 from ..mesh import Mesh
+from .float32 import as_float32
 from .usd_layers import open_stage, pxr_error, pxr_modules
 
 __all__ = ["read_usd", "write_usd"]
@@ -181,12 +182,21 @@ def _read_prim(name, prim, base: int, parts: dict, Usd, UsdGeom) -> int:
         raise MeshError(f"{name}: {prim.GetPath()}: faceVertexCounts and faceVertexIndices do not agree "
                         f"with its {P.shape[0]} points")
     M = _world(UsdGeom, prim, t)
-    if not np.isfinite(M).all() or abs(np.linalg.det(M[:3, :3])) < 1e-300:
+    sign = orientation(M)
+    if not sign:
         raise MeshError(f"{name}: {prim.GetPath()} has a singular or non-finite transform")
+    with np.errstate(over="ignore", invalid="ignore"):
+        placed = place(P, M)
+    if not np.isfinite(P).all():
+        bad = int(np.flatnonzero(~np.isfinite(P).all(axis=1))[0])
+        raise MeshError(f"{name}: {prim.GetPath()}: point {bad} is not finite ({P[bad].tolist()})")
+    if not np.isfinite(placed).all():
+        raise MeshError(f"{name}: {prim.GetPath()}: its points placed by its transform leave double precision "
+                        f"(the largest placed coordinate would exceed {np.finfo(float).max:.3g})")
     left = mesh.GetOrientationAttr().Get(t) == UsdGeom.Tokens.leftHanded
-    flip = bool(left) != bool(np.linalg.det(M[:3, :3]) < 0)
+    flip = bool(left) != (sign < 0)
     perm = reversal(c) if flip else np.arange(i.size)
-    parts["V"].append(place(P, M))
+    parts["V"].append(placed)
     parts["S"].append(c)
     parts["F"].append(i[perm] + base)
     parts["obj"].append(np.full(c.size, len(parts["layout"])))
@@ -292,9 +302,10 @@ def _set(attr, value, what: str) -> list:
 
 
 def _update(stage, layout: list, mesh: Mesh, Usd, UsdGeom, Vt) -> None:
-    from ..geometry.measures import face_vector_areas
+    from ..geometry.measures import face_vector_areas, pow2_exponent
 
-    fa_all = face_vector_areas(mesh)
+    k = pow2_exponent(mesh.vertices)     # only the normals' directions are used: an exact copy in range
+    fa_all = face_vector_areas(mesh, np.ldexp(mesh.vertices, -k) if k else None)
     base = fbase = cbase = 0
     frozen = []
     for item in layout:
@@ -315,9 +326,10 @@ def _update(stage, layout: list, mesh: Mesh, Usd, UsdGeom, Vt) -> None:
         for attr_name, interp in item["normals"]:
             changed += _write_normals(prim, attr_name, interp, tc, fa_all[fbase:fbase + nf], counts,
                                       corner_vertex, n, perm, M, UsdGeom, Vt)
-        local = unplace(mesh.vertices[base:base + n], M)
-        changed = _set(prim.GetPointsAttr(), Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(local, np.float32)),
-                       "points") + changed
+        with np.errstate(over="ignore", invalid="ignore"):
+            local = unplace(mesh.vertices[base:base + n], M)
+        local = as_float32(local, "USD points", f"{item['path']}'s points")
+        changed = _set(prim.GetPointsAttr(), Vt.Vec3fArray.FromNumpy(local), "points") + changed
         extent = UsdGeom.Boundable.ComputeExtentFromPlugins(UsdGeom.Boundable(prim.GetPrim()),
                                                             Usd.TimeCode.Default())
         if extent:
@@ -359,7 +371,7 @@ def _new_mesh(stage, mesh: Mesh, UsdGeom, Sdf, Vt) -> None:
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
     prim = UsdGeom.Mesh.Define(stage, "/Mesh")
     stage.SetDefaultPrim(prim.GetPrim())
-    prim.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(mesh.vertices, np.float32)))
+    prim.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(as_float32(mesh.vertices, "USD points")))
     prim.GetFaceVertexCountsAttr().Set(Vt.IntArray.FromNumpy(np.ascontiguousarray(mesh.face_sizes, np.int32)))
     prim.GetFaceVertexIndicesAttr().Set(Vt.IntArray.FromNumpy(np.ascontiguousarray(mesh.face_indices, np.int32)))
     prim.GetSubdivisionSchemeAttr().Set(UsdGeom.Tokens.none)
