@@ -187,3 +187,22 @@ def test_weld_of_coordinates_spanning_the_whole_double_range():
     assert w.weld_map.tolist() == [0, 1, 2, 3, 1, 2] and w.faces_as_lists() == [[0, 2, 1], [0, 1, 3], [1, 2, 3]]
     with pytest.raises(sf.ParameterError, match="vertex 1 has a non-finite coordinate"):
         weld_map(np.array([[0, 0, 0], [np.inf, 0, 0.0]]), 1e-7)
+
+
+def test_a_million_copies_of_a_point_weld_in_one_sort():
+    """Coinciding vertices are merged before the neighbour search: 10⁶ copies of three points would
+    be 1.5·10¹¹ pairs for the tree (memory no machine has), here they are three positions."""
+    V = np.repeat(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]]), 1_000_000 // 3 + 1, axis=0)
+    wm = weld_map(V, WELD_TOL)
+    k = 1_000_000 // 3 + 1
+    assert np.array_equal(wm, np.repeat([0, 1, 2], k))
+
+
+def test_a_dense_cluster_of_distinct_positions_is_refused_by_name():
+    """50,000 distinct positions within 1e-9 of the diagonal of each other: 1.25·10⁹ pairs within the
+    welding distance.  Refused from a grid count before the search, not after it."""
+    rng = np.random.default_rng(5)
+    V = np.concatenate([rng.uniform(0, 1e-9, (50_000, 3)), [[1.0, 1.0, 1.0]]])
+    with pytest.raises(sf.MeshError, match=r"50,001 distinct vertex positions lie in clusters closer than the "
+                                           r"welding distance \(1e-07 × the bounding-box diagonal\)"):
+        weld_map(V, WELD_TOL)
