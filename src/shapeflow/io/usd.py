@@ -28,8 +28,9 @@ writes the stage back with new ``points`` (each prim in its own coordinates agai
 normals wherever the prim had them (``normals`` and ``primvars:normals``, each in its own
 interpolation: vertex, varying, faceVarying with its splits kept, uniform, constant; indexed
 normals are written flat), and a new ``extent``: materials, other prims, attributes and metadata
-pass through.  A file of one layer is written as that layer (nothing flattened, asset paths as
-written); a composed stage is flattened into one layer.  Time-sampled points cannot be kept: the
+pass through.  A file of one layer that composes no file is written as that layer (nothing
+flattened, asset paths as written); a stage that composes files (a layer referring to itself
+included) is flattened into one layer.  Time-sampled points cannot be kept: the
 prim is written as the one pose that was read, and its time-sampled points, normals, extent and
 topology lose their samples (the default value is the new pose); a
 :class:`~shapeflow.errors.DataLossWarning` names each such prim, attribute, sample count and time.
@@ -39,16 +40,15 @@ Any other mesh is written as a new stage with one ``Mesh`` prim (n-gons kept, ``
 
 from __future__ import annotations
 
-import os
-import tempfile
 import warnings
 from typing import BinaryIO
 
 import numpy as np
 
-from ..errors import DataLossWarning, MeshError
+from ..errors import DataLossWarning, MeshError, OutputError
 from ..geometry.placement import orientation, place, place_normals, unplace, unplace_normals
 from ..mesh import Mesh
+from .atomic import side_file
 from .float32 import as_float32
 from .usd_layers import open_stage, pxr_error, pxr_modules
 
@@ -144,7 +144,7 @@ def read_usd(data: bytes, name: str, *, external_files: bool = True) -> Mesh:
         except UnicodeDecodeError as exc:
             line = data.count(b"\n", 0, exc.start) + 1
             raise MeshError(f"{name}: line {line}: not UTF-8 text") from None
-    stage, root, layers = open_stage(name, external_files)
+    stage, root, _, composes = open_stage(name, external_files)
     parts = {k: [] for k in ("V", "S", "F", "uv", "nrm", "col", "obj", "layout")}
     base = 0
     for prim in stage.Traverse():
@@ -157,7 +157,7 @@ def read_usd(data: bytes, name: str, *, external_files: bool = True) -> Mesh:
     if not parts["V"]:
         raise MeshError(f"{name}: no Mesh prim with points and faces in the USD stage")
     try:      # the text written back (a damaged crate file may hold strings that are not UTF-8)
-        text = root.ExportToString() if len(layers) == 1 else stage.Flatten().ExportToString()
+        text = stage.Flatten().ExportToString() if composes else root.ExportToString()
     except (RuntimeError, UnicodeError) as exc:
         raise MeshError(f"{name}: the stage cannot be written as text ({pxr_error(exc)})") from exc
     return _assemble(name, text, *parts.values())
@@ -242,8 +242,17 @@ def _assemble(name, text, V, S, F, uv, nrm, col, obj, layout) -> Mesh:
 # --------------------------------------------------------------------------
 
 def write_usd(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None, ext: str = ".usda") -> None:
-    """The stage as USD text (``.usda``) or crate (``.usdc``; ``.usd`` is crate)."""
+    """The stage as USD text (``.usda``) or crate (``.usdc``; ``.usd`` is crate).  pxr writes a crate
+    only to a path: a hidden file beside the output (:func:`~shapeflow.io.atomic.side_file`), read
+    back and removed.  Whatever pxr raises is a MeshError (the caller names the output)."""
     Usd, UsdGeom, Sdf, _, Vt = pxr_modules()
+    try:
+        _write_usd(f, mesh, binary, ext, Usd, UsdGeom, Sdf, Vt)
+    except (RuntimeError, UnicodeError) as exc:     # Tf.ErrorException is a RuntimeError
+        raise MeshError(f"the USD library (pxr) cannot write the stage ({pxr_error(exc)})") from exc
+
+
+def _write_usd(f: BinaryIO, mesh: Mesh, binary, ext: str, Usd, UsdGeom, Sdf, Vt) -> None:
     meta = mesh.metadata.get("usd", {})
     same = "layer" in meta and np.array_equal(meta.get("faces", np.zeros(0)), mesh.face_indices)
     if "layer" in meta and not same:
@@ -260,9 +269,9 @@ def write_usd(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None, ext: str =
     if ext == ".usda" and not binary:
         f.write(stage.GetRootLayer().ExportToString().encode("utf-8"))
         return
-    with tempfile.TemporaryDirectory() as tmp:     # the crate format is written to a path only
-        path = os.path.join(tmp, "out.usdc")
-        stage.GetRootLayer().Export(path)
+    with side_file(".usdc") as path:               # the crate format is written to a path only
+        if not stage.GetRootLayer().Export(path):
+            raise OutputError("the USD library (pxr) could not write the crate file beside it")
         with open(path, "rb") as g:
             f.write(g.read())
 

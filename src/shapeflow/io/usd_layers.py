@@ -241,11 +241,13 @@ def _layer_name(layer, name: str) -> str:
 
 
 def _checked_layers(name: str, external_files: bool, Sdf):
-    """The file's layer and every layer it composes, each opened only after its path was checked."""
+    """The file's layer and every layer it composes, each opened only after its path was checked,
+    and whether any layer names a file it composes (itself included)."""
     root = _open_layer(Sdf, name, name, "the file")
     folder = os.path.realpath(os.path.dirname(os.path.abspath(name)))
     layers = {os.path.realpath(root.realPath): root}
     queue = [root]
+    composes = False
     while queue:
         layer = queue.pop()
         try:
@@ -262,6 +264,7 @@ def _checked_layers(name: str, external_files: bool, Sdf):
                                 "files that refer to other files are not accepted here")
             if kind == "asset":
                 continue
+            composes = True
             anchored = _inside(name, folder, layer, kind, where, path)
             real = os.path.realpath(anchored)
             if real in layers:
@@ -271,13 +274,15 @@ def _checked_layers(name: str, external_files: bool, Sdf):
             dep = _open_layer(Sdf, anchored, name, f"the {kind} @{path}@")
             layers[real] = dep
             queue.append(dep)
-    return root, list(layers.values())
+    return root, list(layers.values()), composes
 
 
 def open_stage(name: str, external_files: bool):
-    """The composed stage of the file, its root layer and every layer checked and opened for it."""
+    """The composed stage of the file, its root layer, every layer checked and opened for it, and
+    whether the stage composes any file (a layer referring to itself does: its text alone, opened
+    elsewhere, no longer finds what it refers to)."""
     Usd, _, Sdf, *_ = pxr_modules()
-    root, layers = _checked_layers(name, external_files, Sdf)
+    root, layers, composes = _checked_layers(name, external_files, Sdf)
     try:
         stage = Usd.Stage.Open(root, Usd.Stage.LoadAll)
     except Exception as exc:
@@ -288,4 +293,4 @@ def open_stage(name: str, external_files: bool):
     for used in stage.GetUsedLayers():   # composition opened only what was checked (the session layer aside)
         if not used.anonymous and os.path.realpath(used.realPath) not in checked:
             raise MeshError(f"{name}: composing the stage opened {used.identifier!r}, which was not checked")
-    return stage, root, layers
+    return stage, root, layers, composes
