@@ -13,7 +13,7 @@ from typing import BinaryIO, Callable, Iterator
 from ..errors import MeshError, OutputError, ParameterError
 
 __all__ = ["as_path", "os_error", "read_bytes", "umask", "bundled_data_dir", "output_target", "atomic_write",
-           "side_file"]
+           "side_file", "writing_in"]
 
 #: the folder of the file :func:`atomic_write` is writing (for writers that need a path of their own)
 _WRITING_IN: contextvars.ContextVar[str | None] = contextvars.ContextVar("shapeflow_writing_in", default=None)
@@ -152,6 +152,11 @@ def atomic_write(name: str, write: Callable[[BinaryIO], None], *, force: bool = 
         pass
     finally:
         os.close(dfd)
+
+
+def writing_in() -> str | None:
+    """The folder of the file :func:`atomic_write` is writing now (None outside it)."""
+    return _WRITING_IN.get()
 
 
 @contextlib.contextmanager
