@@ -50,7 +50,7 @@ from ..geometry.placement import orientation, place, place_normals, unplace, unp
 from ..mesh import Mesh
 from .atomic import side_file
 from .float32 import as_float32
-from .usd_layers import open_stage, pxr_error, pxr_modules
+from .usd_layers import open_stage, pxr_diagnostics, pxr_error, pxr_modules
 
 __all__ = ["read_usd", "write_usd"]
 
@@ -144,6 +144,17 @@ def read_usd(data: bytes, name: str, *, external_files: bool = True) -> Mesh:
         except UnicodeDecodeError as exc:
             line = data.count(b"\n", 0, exc.start) + 1
             raise MeshError(f"{name}: line {line}: not UTF-8 text") from None
+    with pxr_diagnostics(name, "reading"):     # pxr's warnings: one DataLossWarning, or a MeshError for cycles
+        stage, root, composes, parts = _compose(name, external_files, Usd, UsdGeom)
+        try:      # the text written back (a damaged crate file may hold strings that are not UTF-8)
+            text = stage.Flatten().ExportToString() if composes else root.ExportToString()
+        except (RuntimeError, UnicodeError) as exc:
+            raise MeshError(f"{name}: the stage cannot be written as text ({pxr_error(exc)})") from exc
+    return _assemble(name, text, *parts.values())
+
+
+def _compose(name: str, external_files: bool, Usd, UsdGeom):
+    """The stage, its root layer, whether it composes files, and its Mesh prims read into parts."""
     stage, root, _, composes = open_stage(name, external_files)
     parts = {k: [] for k in ("V", "S", "F", "uv", "nrm", "col", "obj", "layout")}
     base = 0
@@ -156,11 +167,7 @@ def read_usd(data: bytes, name: str, *, external_files: bool = True) -> Mesh:
             raise MeshError(f"{name}: {prim.GetPath()} cannot be read ({pxr_error(exc)})") from exc
     if not parts["V"]:
         raise MeshError(f"{name}: no Mesh prim with points and faces in the USD stage")
-    try:      # the text written back (a damaged crate file may hold strings that are not UTF-8)
-        text = stage.Flatten().ExportToString() if composes else root.ExportToString()
-    except (RuntimeError, UnicodeError) as exc:
-        raise MeshError(f"{name}: the stage cannot be written as text ({pxr_error(exc)})") from exc
-    return _assemble(name, text, *parts.values())
+    return stage, root, composes, parts
 
 
 def _read_prim(name, prim, base: int, parts: dict, Usd, UsdGeom) -> int:
@@ -247,7 +254,8 @@ def write_usd(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None, ext: str =
     back and removed.  Whatever pxr raises is a MeshError (the caller names the output)."""
     Usd, UsdGeom, Sdf, _, Vt = pxr_modules()
     try:
-        _write_usd(f, mesh, binary, ext, Usd, UsdGeom, Sdf, Vt)
+        with pxr_diagnostics("", "writing"):
+            _write_usd(f, mesh, binary, ext, Usd, UsdGeom, Sdf, Vt)
     except (RuntimeError, UnicodeError) as exc:     # Tf.ErrorException is a RuntimeError
         raise MeshError(f"the USD library (pxr) cannot write the stage ({pxr_error(exc)})") from exc
 
