@@ -55,9 +55,9 @@ def test_subdivide_takes_the_file_s_tags_and_equals_the_library(creased, tmp_pat
     out = tmp_path / "out.obj"
     code, _, err = run_cli(["subdivide", path, out, "--levels", levels], capsys)
     assert code == 0, err
-    assert re.fullmatch(r"subdivide: 8 vertices, 6 faces -> \d+ vertices, \d+ faces \(catmull-clark, \d levels?\) "
-                        r"in \d+\.\d{3} s; 5 creased edges from the file's 't crease' tags \(--no-creases ignores "
-                        r"them\)\n", err), err
+    assert re.fullmatch(r"shapeflow subdivide: 8 vertices, 6 faces -> \d+ vertices, \d+ faces "
+                        r"\(catmull-clark, \d levels?\) in \d+\.\d{3} s; 5 creased edges from the file's 't crease' "
+                        r"tags \(--no-creases ignores them\)\n", err), err
     m = sf.load(path)
     expected = sf.subdivide(m, levels, creases="mesh")
     got = sf.load(out)
