@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import ParameterError
 from .common import load_mesh, progress, resolve_output, save_mesh, write_values
 from .features import EdgeFile, file_crease_tags, read_edge_file, with_crease_tags
-from .images import add_image_options
+from .images import add_image_options, check_picture_path
 from .report import Reporter
 
 __all__ = ["SubdivideOptions", "add_parser", "run"]
@@ -155,6 +155,8 @@ def run(o: SubdivideOptions, source: str, target: str, report: Reporter) -> None
     from ..subdivision import subdivide
 
     resolve_output(source, target, o.force, o.image, o.weights_out)
+    if o.image:
+        check_picture_path(o.image)    # the picture can be drawn, before any work
     mesh = load_mesh(source, report)
     if o.weights:
         mesh = mesh.with_weights(_load_weights(o.weights, mesh.n_vertices))
@@ -180,7 +182,7 @@ def run(o: SubdivideOptions, source: str, target: str, report: Reporter) -> None
     if not o.quiet:
         creased = f"; {n_creased} creased edges {crease_source}" if n_creased else ""
         report.message(
-            f"subdivide: {welded.n_vertices} vertices, {welded.n_faces} faces -> "
+            f"shapeflow subdivide: {welded.n_vertices} vertices, {welded.n_faces} faces -> "
             f"{out.n_vertices} vertices, {out.n_faces} faces "
             f"({o.scheme}, {o.levels} level{'s' if o.levels != 1 else ''}) in {dt:.3f} s{creased}"
         )
