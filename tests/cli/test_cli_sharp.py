@@ -161,7 +161,7 @@ def test_keep_marked_edges_says_when_the_file_marks_none_or_every_edge(box, tmp_
     path, _, _, V, sides = box
     code, _, err = run_cli(["smooth", path, tmp_path / "o.obj", "-s", "5", "--keep-marked-edges", "-q"], capsys)
     assert (code, err) == (0, f"shapeflow smooth: warning: --keep-marked-edges: {path} marks no sharp edge "
-                              "(no smoothing-group border, no 't crease' tag)\n")
+                              "(no smoothing-group border, no 't crease' tag, no split normal)\n")
     flat_shaded = tmp_path / "flat.obj"                      # a flat-shaded export: 's off' on every face
     flat_shaded.write_text(box_obj(V, sides).replace("\nf ", "\ns off\nf ", 1))
     code, _, err = run_cli(["smooth", flat_shaded, tmp_path / "o.obj", "-s", "5", "--keep-marked-edges", "-q",
