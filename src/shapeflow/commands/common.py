@@ -171,14 +171,20 @@ def warn_degenerate_result(report: Reporter, command: str, lam: float, before, a
     collapsed the model towards a point, or enhancement that only rescaled it."""
     import numpy as np
 
-    V, X = before.vertices, after.vertices
+    if before.n_vertices < 4 or abs(lam) < STRONG_LAMBDA:
+        return
+    # in units of the input's largest coordinate: the sums of squares below stay finite at any scale
+    unit = float(np.abs(before.vertices).max()) if before.n_vertices else 0.0
+    unit = unit if np.isfinite(unit) and unit > 0 else 1.0
+    V, X = before.vertices / unit, after.vertices / unit
     moved = float(np.linalg.norm(X - V))
-    if moved == 0.0 or V.shape[0] < 4 or abs(lam) < STRONG_LAMBDA:
+    if moved == 0.0 or not np.isfinite(moved):
         return
     c = V.mean(axis=0)
-    if lam > 0 and after.diagonal < 0.05 * before.diagonal:
+    size_before, size_after = (float(np.linalg.norm(np.ptp(A, axis=0))) for A in (V, X))
+    if lam > 0 and size_after < 0.05 * size_before:
         report.warning(f"shapeflow {command}: warning: λ={lam:g} collapsed the model to "
-                       f"{after.diagonal / before.diagonal:.1%} of its size (the limit of strong smoothing is the "
+                       f"{size_after / size_before:.1%} of its size (the limit of strong smoothing is the "
                        "mean position); try a smaller λ")
         return
     D = V - c
