@@ -291,3 +291,26 @@ def test_the_public_api_is_typed():
         if sig.return_annotation is inspect.Signature.empty and not name.endswith("__init__"):
             bad.append(f"{name} -> ?")
     assert not bad, bad
+
+
+#: the messages of the per-vertex weights check: raised in ``mesh/weights.py`` alone
+WEIGHT_CHECK_TEXTS = ("must lie in [0, 1]; vertex", "weight of vertex", "outside [0, 1]")
+
+
+def raised_texts(path: Path) -> str:
+    """The string pieces of every ``raise`` statement of a module (f-strings' literal parts too)."""
+    pieces = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Raise):
+            pieces += [c.value for c in ast.walk(node) if isinstance(c, ast.Constant) and isinstance(c.value, str)]
+    return "\n".join(pieces)
+
+
+def test_the_weights_check_is_written_once():
+    """Every entry point takes weights through ``shapeflow.mesh.weights`` (flow, brushes, studio, the
+    ``weight`` attribute, weight files, the commands): no other module raises the check's messages."""
+    home = SRC / "mesh" / "weights.py"
+    assert all(t in raised_texts(home) for t in WEIGHT_CHECK_TEXTS)
+    bad = [f"{p.relative_to(ROOT)}: {t!r}" for _, p in modules() if p != home
+           for t in WEIGHT_CHECK_TEXTS if t in raised_texts(p)]
+    assert not bad, "\n".join(bad)

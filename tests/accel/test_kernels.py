@@ -14,8 +14,8 @@ from conftest import shared_mesh_paths
 
 import shapeflow as sf
 from shapeflow import accel as kernels
+from shapeflow.operators.cotan import assemble as _assemble
 from shapeflow.operators.pattern import OperatorPattern as _Structure
-from shapeflow.operators.weights import assemble as _assemble
 
 pytestmark = pytest.mark.skipif(not kernels.available(), reason="numba (the 'fast' extra) not installed")
 

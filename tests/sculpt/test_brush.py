@@ -13,7 +13,7 @@ from meshgen import cube_sphere, grid, icosphere, ngon_disk, random_rotation
 import shapeflow as sf
 from shapeflow.cli import main
 from shapeflow.geometry import vertex_normals
-from shapeflow.operators.weights import assemble as _assemble
+from shapeflow.operators.cotan import assemble as _assemble
 
 
 def _pair_weights(mesh, scheme="tqlbo"):

@@ -15,12 +15,13 @@ from ..linalg.pairs import PairMatrix
 from ..linalg.spd import DEFAULT_RTOL
 from ..mesh import Mesh
 from ..mesh.convert import as_mesh
+from ..mesh.weights import resolve_weights
 from ..operators.pattern import check_scheme
 from ..types import Axes, Weights
 from . import system
 from .features import SharpEdges, resolve_sharp_edges, solve_curves
 from .fixed import fixed_steps
-from .options import COMPAT_MODES, FLOW_SOLVERS, MEAN_RESTORE_FROM, check_run_options, resolve_weights
+from .options import COMPAT_MODES, FLOW_SOLVERS, MEAN_RESTORE_FROM, check_run_options
 from .report import FlowReport
 from .system import LinearSystem, Operator, SystemBuilder
 

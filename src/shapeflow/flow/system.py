@@ -22,7 +22,7 @@ from ..linalg import spd
 from ..linalg.pairs import PairMatrix
 from ..linalg.spd import SPDSolver, choose_method
 from ..mesh import Mesh
-from ..operators.weights import assemble
+from ..operators.cotan import assemble
 from .options import MEAN_RESTORE_FROM
 from .report import FlowReport
 

@@ -15,12 +15,9 @@ import numpy as np
 from .. import accel
 from ..errors import MeshError
 from ..types import Faces
+from .weights import WEIGHT, check_weights
 
 __all__ = ["WEIGHT", "as_vertices", "as_index_array", "normalize_faces", "validate_csr", "as_attribute"]
-
-
-#: Name of the per-vertex weight attribute (values in [0, 1]).
-WEIGHT = "weight"
 
 
 def as_vertices(vertices) -> np.ndarray:
@@ -150,11 +147,6 @@ def as_attribute(name: str, values, n: int) -> np.ndarray:
         i = int(np.flatnonzero(~np.isfinite(a.reshape(n, -1)).all(axis=1))[0])
         raise MeshError(f"attribute '{name}' has a non-finite value at vertex {i}")
     if name == WEIGHT:
-        if a.ndim != 1:
-            raise MeshError(f"weights must have shape ({n},), got {a.shape}")
-        out = np.flatnonzero((a < 0) | (a > 1))
-        if out.size:
-            i = int(out[0])
-            raise MeshError(f"weights must lie in [0, 1]; vertex {i} has {float(a[i])!r} ({out.size} such vertices)")
+        check_weights("weights", a, n)
     a.flags.writeable = False
     return a

@@ -1,7 +1,7 @@
 """Compiled operator assembly: the sparse pattern, the corner cotangent sums and the matrix fill.
 
 The NumPy/SciPy reference is :mod:`shapeflow.operators.pattern` and
-:mod:`shapeflow.operators.weights`; the tests compare the two.
+:mod:`shapeflow.operators.cotan`; the tests compare the two.
 Conventions of all compiled kernels: :mod:`shapeflow.accel`.
 """
 
@@ -32,7 +32,7 @@ def _fill_symmetric(data, pos_diag, diag, pos_upper, pos_lower, off):
 
 def assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
                      P, n, blender_rules, rel_edge_tol, rel_shape_tol, blender_min, flt_eps):
-    """``operators.weights.assemble`` for the corner triangles in two passes, no per-corner temporaries.
+    """``operators.cotan.assemble`` for the corner triangles in two passes, no per-corner temporaries.
 
     Same cotangent formulas and order of operations per corner as
     ``operators.corner_cotangents``, same locking rules; the pair weights and

@@ -12,10 +12,10 @@ import numpy as np
 
 from .. import accel, params
 from ..errors import ParameterError
-from ..flow.options import resolve_weights
 from ..geometry.normals import refresh_normals
 from ..mesh import Mesh
 from ..mesh.convert import as_mesh
+from ..mesh.weights import resolve_weights
 from ..types import Falloff, Weights
 from .grid import CellGrid, sq_norms
 from .numbering import locality_order, renumbered

@@ -8,8 +8,8 @@ from .. import accel
 from ..geometry.cotangent import tri_geometry
 from ..linalg.ordering import row_ptr
 from ..mesh import Mesh
+from ..operators.cotan import REL_EDGE_TOL, REL_SHAPE_TOL
 from ..operators.pattern import operator_pattern
-from ..operators.weights import REL_EDGE_TOL, REL_SHAPE_TOL
 from .base import serialised
 from .numbering import csr_by, csr_ranges, unique_stamp
 
