@@ -263,12 +263,12 @@ def test_cg_kernel_columns(forced):
 def test_small_meshes_do_not_use_kernels():
     size = kernels.current().min_size
     if kernels.current().kernels == "force":   # SHAPEFLOW_KERNELS=force: every size by definition
-        assert kernels.compiled("mesh", 1) is not None
+        assert kernels.kernels("mesh", 1).backend == "numba"
     else:
-        assert kernels.compiled("mesh", size - 1) is None
-    assert kernels.compiled("mesh", size) is not None
+        assert kernels.kernels("mesh", size - 1).backend == "numpy"
+    assert kernels.kernels("mesh", size).backend == "numba"
     with kernels.enabled(False):
-        assert kernels.compiled("mesh", 10**9) is None
+        assert kernels.kernels("mesh", 10**9).backend == "numpy"
 
 
 def test_results_do_not_depend_on_the_thread_count(monkeypatch):

@@ -1,4 +1,4 @@
-"""The acceleration backend: which compiled kernels run, from what size, and the memory-page policy.
+"""The acceleration backend: which implementation of each kernel runs, from what size, and the memory-page policy.
 
 One :class:`Backend` object holds every acceleration setting.  The one in
 force is read with :func:`current`; :func:`use` changes it for a ``with``
@@ -42,11 +42,14 @@ Settings
     too; that is why it is opt-in for the library.  The ``shapeflow``
     command turns it on for its own process.
 
-Compiled kernels
-----------------
-Each package with hot loops has a ``compiled`` module beside its NumPy code
-(``shapeflow.mesh.compiled``, ``geometry``, ``operators``, ``linalg``,
-``flow``, ``sculpt``), loaded only through :func:`compiled`.  Kernels are
+Kernels
+-------
+Each package with hot loops defines a *kernel family* in ``<package>/kernels.py``: a class
+whose methods are the NumPy/SciPy kernels.  :func:`kernels` gives the implementation that
+runs a problem of a given size — the reference, or an accelerator's subclass
+(:mod:`shapeflow.accel.registry`); callers call its methods and never branch on the backend.
+The numba accelerator (:mod:`shapeflow.accel.numba_backend`) implements every family in the
+package's ``compiled`` module.  Its kernels are
 compiled on first use and cached on disk (``cache=True``).  Large arrays are
 allocated by NumPy in the plain-Python wrappers (:func:`zeros`) and filled by
 the compiled functions.  Indices read from arrays are cast to ``np.uint64``
@@ -64,8 +67,8 @@ Examples
 >>> accel.current().kernels in ("auto", "off", "force")
 True
 >>> with accel.use(kernels="off"):
-...     accel.compiled("operators", 10**9) is None
-True
+...     accel.kernels("operators", 10**9).backend
+'numpy'
 """
 
 from __future__ import annotations
@@ -81,15 +84,14 @@ import sys
 import threading
 
 from ..errors import ParameterError
+from .registry import FAMILIES, Accelerator, Family, select
 
-__all__ = ["Backend", "current", "use", "enabled", "set_default", "numba_available", "available", "compiled",
-           "sequential",
-           "heavy", "small_pages", "zeros", "KERNEL_MODES", "CONSUMERS", "thread_count", "usable_cores",
+__all__ = ["Backend", "current", "use", "enabled", "set_default", "numba_available", "available", "kernels",
+           "Family", "Accelerator", "FAMILIES", "apply_call_threads", "sequential",
+           "heavy", "small_pages", "zeros", "KERNEL_MODES", "thread_count", "usable_cores",
            "other_runnable"]
 
 KERNEL_MODES = ("auto", "off", "force")
-#: the packages with a ``compiled`` module of kernels (``shapeflow.<name>.compiled``)
-CONSUMERS = ("mesh", "geometry", "operators", "linalg", "flow", "sculpt")
 
 _log = logging.getLogger("shapeflow")
 
@@ -185,23 +187,21 @@ def available() -> bool:
     return current().kernels != "off" and numba_available()
 
 
-@functools.cache
-def _module(consumer: str):
-    if consumer not in CONSUMERS:
-        raise ValueError(f"no compiled kernels for {consumer!r}")
-    return importlib.import_module(f"shapeflow.{consumer}.compiled")
-
-
 def compiled(consumer: str, size: int, *, min_size: int | None = None):
-    """The compiled kernels of ``shapeflow.<consumer>`` when the current backend runs a problem
-    of ``size`` compiled, else None (use the NumPy/SciPy twin)."""
+    """The compiled module of ``shapeflow.<consumer>`` when the current backend runs a problem of
+    ``size`` compiled, else None (the call sites not yet moved to :func:`kernels`)."""
     if not current().uses_compiled(size, min_size=min_size):
         return None
-    mod = _module(consumer)
-    k = _call_threads.get()
-    if k is not None:          # numba may have been imported just now, inside a heavy call
-        _apply_threads(k)
+    mod = importlib.import_module(f"shapeflow.{consumer}.compiled")
+    apply_call_threads()
     return mod
+
+
+def kernels(family: str, size: int) -> Family:
+    """The implementation of the kernel family ``family`` (:data:`FAMILIES`) that runs a problem of
+    ``size`` vertices or unknowns under the current backend: an accelerator's when it is available
+    and takes that size, else the NumPy/SciPy reference (see :mod:`shapeflow.accel.registry`)."""
+    return select(family, size, current())
 
 
 def sequential(kernel):
@@ -325,6 +325,14 @@ def thread_count() -> int:
 
 
 _call_threads: contextvars.ContextVar[int | None] = contextvars.ContextVar("shapeflow_threads", default=None)
+
+
+def apply_call_threads() -> None:
+    """Inside a heavy call, numba's thread count set to the call's (numba may have been imported
+    since the call began); nothing outside one."""
+    k = _call_threads.get()
+    if k is not None:
+        _apply_threads(k)
 
 
 def _apply_threads(k: int) -> None:

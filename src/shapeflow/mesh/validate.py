@@ -98,32 +98,7 @@ def validate_csr(indices: np.ndarray, offsets: np.ndarray, n: int) -> None:
             f"face offsets must start at 0 and end at the number of corners ({indices.size}); "
             f"got {offsets.size} offsets"
         )
-    fast = accel.compiled("mesh", n)
-    if fast is not None and fast.first_bad_face(indices, offsets, n) < 0:
-        return   # one compiled pass found nothing; otherwise the checks below say what is wrong
-    sizes = np.diff(offsets)
-    small = np.flatnonzero(sizes < 3)
-    if small.size:
-        f = int(small[0])
-        raise MeshError(f"face {f} has {int(sizes[f])} corners; a face needs at least 3 ({small.size} such faces)")
-    if indices.size and (indices.min() < 0 or indices.max() >= n):
-        bad = np.flatnonzero((indices < 0) | (indices >= n))
-        c = int(bad[0])
-        f = int(np.searchsorted(offsets, c, side="right") - 1)
-        raise MeshError(
-            f"face {f} refers to vertex {int(indices[c])}, out of range [0, {n}) "
-            f"({bad.size} such corners)"
-        )
-    # a vertex repeated inside one face: sort each face's corners, per face size
-    for s in np.unique(sizes):
-        faces_s = np.flatnonzero(sizes == s)
-        block = indices[offsets[faces_s][:, None] + np.arange(s)]
-        block.sort(axis=1)
-        rep = (block[:, 1:] == block[:, :-1]).any(axis=1)
-        if rep.any():
-            f = int(faces_s[np.flatnonzero(rep)[0]])
-            corners = indices[offsets[f]:offsets[f + 1]].tolist()
-            raise MeshError(f"face {f} repeats a vertex: {corners}")
+    accel.kernels("mesh", n).check_faces(indices, offsets, n)
 
 
 def as_attribute(name: str, values, n: int) -> np.ndarray:
