@@ -183,7 +183,7 @@ def test_interior_system_identical(name, mesh, forced):
     for on in (True, False):
         with kernels.enabled(on):
             isys = fs.systems.interior(op, -4.0, 1, [])
-            out.append((isys.A.toarray(), isys.solver._minv, isys.coupling, isys.c))
+            out.append((isys.A.toarray(), isys.solver.minv, isys.coupling, isys.c))
     (A1, m1, c1, d1), (A0, m0, c0, d0) = out
     assert np.array_equal(A1, A0) and np.array_equal(m1, m0) and np.array_equal(d1, d0)
     assert c0[0].size > 0

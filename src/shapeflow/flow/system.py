@@ -286,9 +286,9 @@ class SystemBuilder:
             return "cg"   # single steps; several fixed steps go through _fixed_steps
         if self.solver_method != "auto":
             return self.solver_method
-        # the compiled CG on the CSR system preconditions with symmetric Gauss–Seidel (SPDSolver)
-        sgs = (not lean and accel.compiled("linalg", n_free if n_rows is None else n_rows) is not None
-               and spd.DEFAULT_PRECONDITIONER != "jacobi")
+        # CG on the CSR system preconditions as the linalg kernels do for "auto" (Gauss–Seidel compiled)
+        auto = accel.kernels("linalg", n_free if n_rows is None else n_rows).auto_preconditioner
+        sgs = not lean and auto == "sgs" and spd.DEFAULT_PRECONDITIONER != "jacobi"
         return choose_method(n_free, kappa, n_solves, self.rtol, "sgs" if sgs else "jacobi")
 
     def interior(self, operator: Operator, lam: float, n_solves: int, notes: list, *,
