@@ -88,7 +88,7 @@ def load(ref: str):
 _lock = threading.Lock()
 _references: dict[str, Family] = {}
 _implementations: dict[tuple[str, str], Family] = {}
-_accelerators: list[tuple[Accelerator, ...]] = []
+_accelerators: dict[tuple[str, ...], tuple[Accelerator, ...]] = {}
 
 
 def reference(family: str) -> Family:
@@ -103,12 +103,14 @@ def reference(family: str) -> Family:
 
 
 def accelerators() -> tuple[Accelerator, ...]:
-    """The accelerators of :data:`ACCELERATORS`, loaded (their own modules only, not their kernels)."""
-    if not _accelerators:
+    """The accelerators :data:`ACCELERATORS` names, loaded (their own modules only, not their kernels)."""
+    names = ACCELERATORS
+    accs = _accelerators.get(names)
+    if accs is None:
+        accs = tuple(load(a) for a in names)
         with _lock:
-            if not _accelerators:
-                _accelerators.append(tuple(load(a) for a in ACCELERATORS))
-    return _accelerators[0]
+            accs = _accelerators.setdefault(names, accs)
+    return accs
 
 
 def _implementation(acc: Accelerator, family: str) -> Family:
