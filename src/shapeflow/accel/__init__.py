@@ -12,7 +12,8 @@ Settings
 ``kernels``
     ``"auto"`` (default): the compiled twins (the ``fast`` extra: numba) run
     on problems of at least ``min_size`` vertices or unknowns when numba is
-    installed; ``"off"``: NumPy/SciPy only; ``"force"``: compiled at every
+    installed (the brush's kernel families, whose work is a dab's whatever the
+    mesh, at every size); ``"off"``: NumPy/SciPy only; ``"force"``: compiled at every
     size (the test suite runs that way in CI, so the compiled paths are
     checked on small meshes too).  Every compiled kernel has a NumPy/SciPy
     twin computing the same formulas in the same order (the compiled CG's
@@ -77,7 +78,6 @@ import contextlib
 import contextvars
 import dataclasses
 import functools
-import importlib
 import logging
 import os
 import sys
@@ -185,16 +185,6 @@ def numba_available() -> bool:
 def available() -> bool:
     """True when numba is installed and the current backend does not switch the kernels off."""
     return current().kernels != "off" and numba_available()
-
-
-def compiled(consumer: str, size: int, *, min_size: int | None = None):
-    """The compiled module of ``shapeflow.<consumer>`` when the current backend runs a problem of
-    ``size`` compiled, else None (the call sites not yet moved to :func:`kernels`)."""
-    if not current().uses_compiled(size, min_size=min_size):
-        return None
-    mod = importlib.import_module(f"shapeflow.{consumer}.compiled")
-    apply_call_threads()
-    return mod
 
 
 def kernels(family: str, size: int) -> Family:
