@@ -97,8 +97,9 @@ def reference(family: str) -> Family:
     if impl is None:
         if family not in FAMILIES:
             raise ValueError(f"no kernel family {family!r}; the families are {', '.join(FAMILIES)}")
+        new = load(FAMILIES[family])()     # imported outside the lock (an import takes its own)
         with _lock:
-            impl = _references.setdefault(family, load(FAMILIES[family])())
+            impl = _references.setdefault(family, new)
     return impl
 
 
@@ -119,23 +120,24 @@ def _implementation(acc: Accelerator, family: str) -> Family:
         cls, ref = load(acc.families[family]), type(reference(family))
         if not issubclass(cls, ref):       # a plain class of the methods it accelerates: the rest from the reference
             cls = type(cls.__name__, (cls, ref), {"backend": acc.name})
+        new = cls()
         with _lock:
-            impl = _implementations.setdefault((acc.name, family), cls())
+            impl = _implementations.setdefault((acc.name, family), new)
     return impl
 
 
-def select(family: str, size: int, backend) -> Family:
+def select(family: str, size: int, settings) -> Family:
     """The implementation of ``family`` that runs a problem of ``size`` (vertices or unknowns)
-    under the settings ``backend`` (a :class:`~shapeflow.accel.Backend`)."""
+    under ``settings`` (a :class:`~shapeflow.accel.Backend`)."""
     ref = reference(family)
-    mode = backend.kernels
+    mode = settings.kernels
     if mode != "off":
         for acc in accelerators():
             if family not in acc.families:
                 continue
             if mode == "auto":
                 low = ref.min_size if ref.min_size is not None else \
-                    acc.min_size if acc.min_size is not None else backend.min_size
+                    acc.min_size if acc.min_size is not None else settings.min_size
                 if size < low:
                     continue
             if acc.available():
