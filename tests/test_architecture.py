@@ -295,7 +295,7 @@ def test_the_public_api_is_typed():
 
 
 #: the messages of the per-vertex weights check: raised in ``mesh/weights.py`` alone
-WEIGHT_CHECK_TEXTS = ("must lie in [0, 1]; vertex", "weight of vertex", "outside [0, 1]")
+WEIGHT_CHECK_TEXTS = ("must lie in [0, 1]; vertex", "weight of vertex", ", outside [0, 1] ")
 
 
 def raised_texts(path: Path) -> str:

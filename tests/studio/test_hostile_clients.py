@@ -341,7 +341,7 @@ def test_opening_a_file_stops_the_replaced_sessions_family_solve(tmp_path):
 
 def test_ending_the_studio_kills_a_reader_under_way(tmp_path):
     """A file being read for a page when the studio ends: its reader is killed, not waited for."""
-    from shapeflow.studio.upload import stop_readers
+    from shapeflow.studio.upload import readers_under_way, stop_readers
 
     fifo = tmp_path / "slow.obj"
     os.mkfifo(fifo)                                    # the reader blocks on it until killed
@@ -351,9 +351,7 @@ def test_ending_the_studio_kills_a_reader_under_way(tmp_path):
     import time as _t
 
     for _ in range(600):                               # until its child is under way
-        from shapeflow.studio import upload
-
-        if upload._CHILDREN:
+        if readers_under_way():
             break
         _t.sleep(0.05)
     stop_readers()
@@ -380,7 +378,8 @@ def test_usd_uploads_are_read(tmp_path, ext):
 
 @pytest.mark.parametrize("name,body,words", [
     ("points.ply", b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
-                   b"end_header\n0 0 0\n1 0 0\n0 1 0\n", "points.ply: the mesh has no faces (3 points): the studio edits surfaces"),
+                   b"end_header\n0 0 0\n1 0 0\n0 1 0\n",
+     "points.ply: the mesh has no faces (3 points): the studio edits surfaces"),
     ("points.obj", b"v 0 0 0\nv 1 0 0\n", "has no faces"),
 ])
 def test_a_file_without_faces_is_refused_and_nothing_changes(server, name, body, words):

@@ -59,6 +59,13 @@ negative value, and these gathers are the inner loops (measured: CSR product
 ~15% faster, corner assembly ~25%).  Only indices that cannot be negative
 are cast.
 
+Processes
+---------
+A process forked (``os.fork``, ``multiprocessing``'s ``fork`` start method) after its parent ran
+a parallel kernel on numba's OpenMP layer cannot start OpenMP threads: GNU OpenMP would end it.
+shapeflow notices the fork and runs the NumPy/SciPy twins there, saying so once in a log line;
+processes started with ``spawn`` or ``forkserver`` keep the compiled kernels.
+
 Environment (read once, for the process default): ``SHAPEFLOW_KERNELS`` =
 ``0``/``off``, ``1``/``auto`` or ``force``; ``SHAPEFLOW_SMALL_PAGES=1``.
 
@@ -86,8 +93,8 @@ import threading
 from ..errors import ParameterError
 from .registry import FAMILIES, Accelerator, Family, select
 
-__all__ = ["Backend", "current", "use", "enabled", "set_default", "numba_available", "available", "kernels",
-           "Family", "Accelerator", "FAMILIES", "apply_call_threads", "sequential",
+__all__ = ["Backend", "current", "use", "enabled", "set_default", "numba_available", "numba_usable", "available",
+           "kernels", "Family", "Accelerator", "FAMILIES", "apply_call_threads", "sequential",
            "heavy", "small_pages", "zeros", "KERNEL_MODES", "thread_count", "usable_cores",
            "other_runnable"]
 
@@ -122,7 +129,7 @@ class Backend:
             return False
         if self.kernels == "auto" and size < (self.min_size if min_size is None else min_size):
             return False
-        return numba_available()
+        return numba_usable()
 
 
 def _from_environment() -> Backend:
@@ -182,9 +189,54 @@ def numba_available() -> bool:
     return True
 
 
+def numba_usable() -> bool:
+    """numba is installed and may start its threads in this process (see :func:`_forked_after_openmp`)."""
+    return numba_available() and not _forked_after_openmp()
+
+
 def available() -> bool:
     """True when numba is installed and the current backend does not switch the kernels off."""
     return current().kernels != "off" and numba_available()
+
+
+# --------------------------------------------------------------------------
+# fork: GNU OpenMP cannot run in a child forked after it ran in the parent
+# --------------------------------------------------------------------------
+
+_fork = {"after_openmp": False, "told": False}
+
+
+def _after_fork_in_child() -> None:
+    """In a child made by ``os.fork`` (``multiprocessing``'s default start method on Linux before
+    Python 3.14): if the parent has run a parallel kernel on numba's OpenMP layer, a parallel
+    kernel here would end the process (libgomp: "fork() called from a process already using GNU
+    OpenMP") and leave a ``multiprocessing.Pool`` waiting for its result forever."""
+    numba = sys.modules.get("numba")
+    if numba is None:
+        return
+    try:
+        layer = numba.threading_layer()
+    except (ValueError, AttributeError):    # no parallel kernel has run: the child may start OpenMP itself
+        return
+    _fork["after_openmp"] = layer == "omp"
+    _fork["told"] = False
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_after_fork_in_child)
+
+
+def _forked_after_openmp() -> bool:
+    """Whether this process was forked after its parent ran OpenMP: its compiled kernels are off
+    (the NumPy/SciPy twins run, same formulas) and a log line says so once."""
+    if not _fork["after_openmp"]:
+        return False
+    if not _fork["told"]:
+        _fork["told"] = True
+        _log.warning("shapeflow: this process was forked after its parent ran numba's OpenMP threads, which "
+                     "cannot run here; the NumPy/SciPy twins of the compiled kernels run instead (start "
+                     "worker processes with the 'spawn' or 'forkserver' method to keep them)")
+    return True
 
 
 def kernels(family: str, size: int) -> Family:

@@ -8,14 +8,14 @@ implementation when it first runs.
 
 from __future__ import annotations
 
-from . import apply_call_threads, numba_available
+from . import apply_call_threads, numba_usable
 from .registry import Accelerator
 
 __all__ = ["NUMBA"]
 
 NUMBA = Accelerator(
     name="numba",
-    available=numba_available,
+    available=numba_usable,
     families={
         "mesh": "shapeflow.mesh.compiled:MeshNumba",
         "geometry": "shapeflow.geometry.compiled:GeometryNumba",

@@ -26,6 +26,32 @@ def run(args) -> int:
     return 0
 
 
+def sharp_lines(mesh, name: str) -> list[str]:
+    """The sharp edges at 30° and those the file marks, and the creased edges, with the options that
+    keep them (a malformed 't crease' tag is a warning line)."""
+    from ..commands.features import file_crease_tags, marked_edges
+    from ..errors import ParameterError
+    from ..geometry.features import angle_sharp_edges
+
+    at30 = f"{int(angle_sharp_edges(mesh, 30.0).sum())} at 30° (--feature-angle 30 keeps them)"
+    try:
+        marks = marked_edges(mesh, name)
+        _, sharpness = file_crease_tags(mesh, name)
+    except ParameterError as exc:
+        return [f"  sharp edges     {at30}", f"  warning: {exc}"]
+    marked = (f"{marks.count} marked by the file ({marks.sources()}): --keep-marked-edges keeps them"
+              if marks.count else "none marked by the file")
+    out = [f"  sharp edges     {at30}; {marked}"]
+    s = sharpness[sharpness > 0]
+    if s.size:
+        span = f"{s.min():g}" if s.min() == s.max() else f"{s.min():g} .. {s.max():g}"
+        out.append(f"  creased edges   {marks.tags} by 't crease' tags, sharpness {span}: subdivide creases them "
+                   "(--no-creases ignores them)")
+    else:
+        out.append("  creased edges   none")
+    return out
+
+
 def describe(mesh, name: str = "mesh") -> str:
     t = mesh.topology
     lines = [f"{name}"]
@@ -58,6 +84,7 @@ def describe(mesh, name: str = "mesh") -> str:
     manifold = d.nonmanifold_edges == 0 and d.nonmanifold_vertices == 0
     lines.append(f"  manifold        {'yes' if manifold else 'no'}")
     lines.append(f"  oriented        {'yes' if d.inconsistent_orientation_edges == 0 else 'no'}")
+    lines += sharp_lines(mesh, name)
     lo, hi = mesh.bounding_box
     fmt = lambda a: "(" + ", ".join(f"{x:.6g}" for x in a) + ")"  # noqa: E731
     lines.append(f"  bounding box    {fmt(lo)} .. {fmt(hi)}, diagonal {mesh.diagonal:.6g}")

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..errors import ParameterError
 from .common import load_mesh, note_compiling, progress, resolve_output, save_mesh, welded_for_operator
+from .features import FeatureSettings, add_feature_options, drawn_edges, feature_kwargs
 from .images import add_image_options
 from .report import Reporter
 
@@ -34,9 +35,9 @@ MAX_STROKE_BYTES = 64 << 20
 
 
 @dataclass(frozen=True)
-class BrushOptions:
+class BrushOptions(FeatureSettings):
     """Options of ``brush``, named as on the command line; ``stroke`` is the stroke file (read when
-    the brush runs)."""
+    the brush runs); the sharp-edge options are the flow's (the enhance brush keeps them)."""
 
     stroke: str = ""
     weights: str | None = None          #: a .npy/.txt file, or the name of a vertex attribute of the input
@@ -47,6 +48,9 @@ class BrushOptions:
     strict: bool = False                #: a stroke that moves no vertex is an error, not a warning
     image: str | None = None
     image_up: str = "auto"
+
+    def __post_init__(self):
+        self.check_features()
 
 
 def add_parser(sub) -> None:
@@ -74,6 +78,7 @@ def add_parser(sub) -> None:
     p.add_argument("--strict", action="store_true",
                    help="a stroke that moves no vertex is an error (exit 2, nothing written) instead of a warning")
     add_image_options(p)
+    add_feature_options(p)
     p.set_defaults(options=BrushOptions)
 
 
@@ -164,13 +169,14 @@ def _points(pts, where: str) -> list:
     return [[float(x) for x in q] for q in pts]
 
 
-def _make_brush(o: BrushOptions, operand, stroke: dict, weights):
+def _make_brush(o: BrushOptions, operand, stroke: dict, weights, features: dict):
     from ..sculpt import Brush, InflateBrush
 
     if stroke["brush"] == "enhance":
         return Brush(operand, lam=stroke["lambda"], radius=stroke["radius"], falloff=stroke["falloff"],
                      lam_border=stroke["lambda_border"], weights=weights, scheme=o.scheme,
-                     normalized=not o.area_normalized, undo_limit=0)
+                     normalized=not o.area_normalized, undo_limit=0, feature_angle=features["feature_angle"],
+                     sharp_edges=features["sharp_edges"])
     return InflateBrush(operand, strength=stroke["strength"], radius=stroke["radius"], falloff=stroke["falloff"],
                         weights=weights, undo_limit=0)
 
@@ -180,21 +186,28 @@ def run(o: BrushOptions, source: str, target: str, report: Reporter) -> None:
     from .flow import weights_arg
 
     stroke = read_stroke(o.stroke)
+    if stroke["brush"] == "inflate" and o.uses_features:
+        raise ParameterError(f"stroke file '{o.stroke}': the inflate brush moves vertices along their normals and "
+                             "keeps no sharp edges; --feature-angle, --sharp-edges and --keep-marked-edges are for "
+                             "the enhance brush")
     out_path = resolve_output(source, target, o.force, o.image)
     if o.image:
         from .images import check_picture_path
 
         check_picture_path(o.image)
     mesh = load_mesh(source, report)
-    operand, kw, restore = welded_for_operator(mesh, {"weights": weights_arg(o.weights, mesh)}, "brush", o.quiet,
-                                               report)
+    kw = {"weights": weights_arg(o.weights, mesh)}
+    if stroke["brush"] == "enhance":
+        kw.update(feature_kwargs(o, mesh, source, "brush", report))
+    sharp = drawn_edges(mesh, kw) if o.image else None
+    operand, kw, restore = welded_for_operator(mesh, kw, "brush", o.quiet, report)
     weights = kw["weights"]
     t_compile = 0.0
     if note_compiling(report, ("sculpt", "linalg", "mesh", "operators"), operand.n_vertices, min_size=0,
-                      quiet=o.quiet):
+                      quiet=o.quiet, command="brush"):
         t_compile = warm_up_brush()     # compiled now, so the dab timings below are the dabs'
     t0 = time.perf_counter()
-    brush = _make_brush(o, operand, stroke, weights)
+    brush = _make_brush(o, operand, stroke, weights, kw)
     t1 = time.perf_counter()
     centers = brush.dab_centers(stroke["points"], stroke["spacing"])
     with progress(report, len(centers), "dabs", o.quiet) as cb:
@@ -213,7 +226,7 @@ def run(o: BrushOptions, source: str, target: str, report: Reporter) -> None:
         from .images import before_after
 
         before_after(o.image, mesh, result, label_after=f"{stroke['brush']} stroke", up=o.image_up, quiet=o.quiet,
-                     report=report)
+                     report=report, feature_lines=sharp, command="brush")
     if not o.quiet:
         n = len(centers)
         report.message(f"shapeflow brush: {stroke['brush']}, {n} dab{'s' if n != 1 else ''} of radius "

@@ -139,7 +139,8 @@ def welded_for_operator(mesh, kw: dict, command: str, quiet: bool, report: Repor
     A mesh whose vertices are split at seams (or a triangle soup) is welded for the operator
     (:func:`shapeflow.weld`) and the result scattered back, so every copy of a vertex moves alike
     and the file keeps its layout and attributes; the command says so.  Weights given as an array
-    follow the weld.  Returns ``(mesh, kw, restore)``.
+    and sharp edges given as vertex pairs follow the weld (a pair whose two vertices become one is
+    dropped).  Returns ``(mesh, kw, restore)``.
     """
     import numpy as np
 
@@ -151,6 +152,9 @@ def welded_for_operator(mesh, kw: dict, command: str, quiet: bool, report: Repor
     first = np.unique(welded.weld_map, return_index=True)[1]
     if isinstance(kw.get("weights"), np.ndarray):
         kw = {**kw, "weights": kw["weights"][first]}
+    if isinstance(kw.get("sharp_edges"), np.ndarray):
+        pairs = welded.weld_map[kw["sharp_edges"]]
+        kw = {**kw, "sharp_edges": pairs[pairs[:, 0] != pairs[:, 1]]}
     if not quiet:
         report.message(f"shapeflow {command}: {mesh.n_vertices - welded.n_vertices} vertices coincide with others "
                        f"(seams or a triangle soup): welded to {welded.n_vertices} for the operator, "
@@ -186,7 +190,7 @@ def warn_degenerate_result(report: Reporter, command: str, lam: float, before, a
 
 
 def note_compiling(report: Reporter, consumers: tuple, size: int, *, min_size: int | None = None,
-                   quiet: bool = False) -> bool:
+                   quiet: bool = False, command: str = "") -> bool:
     """Say once that the compiled kernels are being compiled (the first run on this machine takes
     tens of seconds; later runs load them from numba's cache).  Returns whether it said so."""
     from pathlib import Path
@@ -204,6 +208,6 @@ def note_compiling(report: Reporter, consumers: tuple, size: int, *, min_size: i
         if not any(cache.glob("compiled.*.nbi")):
             missing.append(name)
     if missing:
-        report.message("shapeflow: compiling the fast kernels (first run on this machine only; later runs load "
-                       "them from numba's cache)")
+        report.message(f"shapeflow{' ' + command if command else ''}: compiling the fast kernels (first run on this "
+                       "machine only; later runs load them from numba's cache)")
     return bool(missing)

@@ -6,6 +6,7 @@ import os
 import time
 from dataclasses import dataclass
 
+from .. import params
 from ..errors import ParameterError
 from .common import (
     load_mesh,
@@ -18,7 +19,8 @@ from .common import (
     warn_degenerate_result,
     welded_for_operator,
 )
-from .images import add_image_options
+from .features import FeatureSettings, add_feature_options, drawn_edges, feature_kwargs
+from .images import add_image_options, check_picture_path
 from .report import Reporter
 
 __all__ = ["FlowSettings", "FlowOptions", "OPTION_NAMES", "add_parsers", "add_flow_options", "run"]
@@ -30,10 +32,11 @@ OPTION_NAMES = {"lam_border": "--lambda-border", "iterations": "--iterations", "
 
 
 @dataclass(frozen=True)
-class FlowSettings:
+class FlowSettings(FeatureSettings):
     """The flow options that ``flow``, ``enhance``, ``smooth`` and ``family`` share, named as on the
-    command line (``lambda_border`` is ``--lambda-border``).  Values are checked as the object is
-    made, and errors name the option: ``--iterations must be >= 0, got -1``."""
+    command line (``lambda_border`` is ``--lambda-border``), the sharp-edge ones
+    (:class:`~shapeflow.commands.features.FeatureSettings`) among them.  Values are checked as the
+    object is made, and errors name the option: ``--iterations must be >= 0, got -1``."""
 
     lambda_border: float = 0.0
     iterations: int = 1
@@ -53,18 +56,21 @@ class FlowSettings:
 
     def check_run_settings(self) -> None:
         """The checks of the per-run flow options (iterations, update, axes) that the library makes,
-        made now, in the options' names."""
+        made now, in the options' names, and of the sharp-edge options (their file read)."""
         from ..flow.options import check_run_options
 
         with option_names(OPTION_NAMES):
             check_run_options(self.iterations, self.update, self.axes, self.compat == "blender")
+        self.check_features()
 
-    def flow_kwargs(self, mesh) -> dict:
-        """The library's keyword arguments (:func:`shapeflow.flow`) for ``mesh``, weights read."""
+    def flow_kwargs(self, mesh, source: str = "", command: str = "flow", report: Reporter | None = None) -> dict:
+        """The library's keyword arguments (:func:`shapeflow.flow`) for ``mesh`` (the file ``source``),
+        weights and sharp edges read; ``report`` hears what the file marks sharp."""
         return dict(lam_border=self.lambda_border, iterations=self.iterations, normalized=not self.area_normalized,
                     weights=weights_arg(self.weights, mesh), invert_weights=self.invert_weights,
                     preserve_volume=self.preserve_volume, axes=self.axes, scheme=self.scheme, update=self.update,
-                    compat=None if self.compat == "paper" else "blender", solver=self.solver)
+                    compat=None if self.compat == "paper" else "blender", solver=self.solver,
+                    **feature_kwargs(self, mesh, source, command, report or Reporter()))
 
 
 @dataclass(frozen=True)
@@ -86,11 +92,18 @@ class FlowOptions(FlowSettings):
     @property
     def signed_lambda(self) -> float:
         """λ: ``--lambda``, or ``--strength`` with the command's sign, checked in the option's own name
-        and sign (``--strength inf``: ``--strength must be finite, got inf``)."""
+        and sign (``--strength inf``: ``--strength must be finite, got inf``); a negative strength
+        names the command and the ``flow`` that do what it asks (``enhance -s -50`` smooths)."""
         if self.command == "flow":
             return option_number("--lambda", self.lam)
         sign = -1.0 if self.command == "enhance" else 1.0
-        return sign * option_number("--strength", self.strength, lo=0.0)
+        s = self.strength
+        if isinstance(s, (int, float)) and -params.LAMBDA_MAX <= s < 0:
+            other = "smooth" if self.command == "enhance" else "enhance"
+            raise ParameterError(f"--strength must be >= 0, got {s:g} ({self.command}'s λ is {'-' if sign < 0 else '+'}"
+                                 f"strength; to {other}, use 'shapeflow {other} --strength {-s:g}' or "
+                                 f"'shapeflow flow --lambda {sign * s:g}')")
+        return sign * option_number("--strength", s, lo=0.0)
 
 
 def add_flow_options(p) -> None:
@@ -119,6 +132,7 @@ def add_flow_options(p) -> None:
                    help="allow OUTPUT to be the input file, or a read-only file (overwrite it)")
     p.add_argument("--quiet", "-q", action="store_true", help="no progress or summary on stderr")
     add_image_options(p)
+    add_feature_options(p)
 
 
 def add_parsers(sub) -> None:
@@ -158,10 +172,15 @@ def run(o: FlowOptions, source: str, target: str, report: Reporter) -> None:
 
     lam = o.signed_lambda
     out_path = resolve_output(source, target, o.force, o.image)
+    if o.image:
+        check_picture_path(o.image)    # the picture can be drawn, before any work
     t0 = time.perf_counter()
     mesh = load_mesh(source, report, quiet=o.quiet, command=o.command)
-    operand, kw, restore = welded_for_operator(mesh, o.flow_kwargs(mesh), o.command, o.quiet, report)
-    note_compiling(report, ("mesh", "operators", "flow", "linalg"), operand.n_vertices, quiet=o.quiet)
+    kw = o.flow_kwargs(mesh, source, o.command, report)
+    sharp = drawn_edges(mesh, kw) if o.image else None
+    operand, kw, restore = welded_for_operator(mesh, kw, o.command, o.quiet, report)
+    note_compiling(report, ("mesh", "operators", "flow", "linalg"), operand.n_vertices, quiet=o.quiet,
+                   command=o.command)
     if not o.quiet and operand.n_vertices >= 1_000_000:
         report.message(f"shapeflow {o.command}: solving {o.iterations} implicit step(s) on "
                        f"{operand.n_vertices:,} vertices")
@@ -179,4 +198,4 @@ def run(o: FlowOptions, source: str, target: str, report: Reporter) -> None:
     if o.image:
         from .images import flow_image
 
-        flow_image(o, mesh, result, lam, report)
+        flow_image(o, mesh, result, lam, report, sharp)

@@ -4,16 +4,21 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import time
 from dataclasses import dataclass
 from typing import Sequence
 
 from ..errors import ParameterError
+from .argv import OptionalValue
 from .common import load_mesh
 from .images import check_png, parse_size, up_axis
 from .report import Reporter
 
-__all__ = ["RenderOptions", "add_parser", "run"]
+__all__ = ["RenderOptions", "add_parser", "parse_feature_lines", "run"]
+
+#: the angle ``--feature-lines`` without a value stands for (degrees)
+DEFAULT_FEATURE_ANGLE = 30.0
 
 
 @dataclass(frozen=True)
@@ -37,8 +42,11 @@ class RenderOptions:
     no_colorbar: bool = False
     framing: str = "shared"
     quiet: bool = False
+    feature_lines: float | str | None = None     #: an angle in degrees, or "marked": the edges the file marks
 
     def __post_init__(self):
+        if self.feature_lines is not None:
+            object.__setattr__(self, "feature_lines", parse_feature_lines(self.feature_lines))
         if isinstance(self.clim, str):
             object.__setattr__(self, "clim", parse_range(self.clim))
         if isinstance(self.grid, str) and self.grid != "auto":
@@ -57,6 +65,20 @@ class _MeshesThenPicture(argparse.Action):
         namespace.input, namespace.output = list(values[:-1]), values[-1]
 
 
+def _is_feature_value(text: str) -> bool:
+    """A value of ``--feature-lines``: a number or ``marked`` (any other word is a path)."""
+    try:
+        float(text)
+    except ValueError:
+        return text == "marked"
+    return True
+
+
+def _is_grid(text: str) -> bool:
+    """A value of ``--grid``: ``RxC``, or a word of digits around an x (told as a bad grid), not a path."""
+    return re.fullmatch(r"[\d\s]*[xX][\d\s]*", text) is not None
+
+
 def add_parser(sub) -> None:
     """The grammar of ``render``."""
     p = sub.add_parser(
@@ -64,7 +86,7 @@ def add_parser(sub) -> None:
         usage="shapeflow render [options] MESH [MESH ...] OUT.png",
         description="Render meshes offscreen into a PNG: smooth or flat shading, a colour field with a "
         "colour bar, optional wireframe (quads drawn as quads). Several meshes are drawn side by side "
-        "with one camera and one colour range, so they can be compared.")
+        "with one camera and one colour range, so they can be compared.", intermixed=True)
     p.add_argument("paths", nargs="+", metavar="PATH", action=_MeshesThenPicture,
                    help="input meshes (OBJ, PLY, OFF, STL, glTF/GLB, USD, or example:NAME), then the PNG to write")
     p.add_argument("--color", "-c", default="curvature", metavar="FIELD",
@@ -81,10 +103,15 @@ def add_parser(sub) -> None:
                    help="the axis the model faces (default auto: the bundled examples' own, else +z with y up, "
                         "as glTF and Blender's exporters, and -y with z up, as in Blender)")
     p.add_argument("--edges", "-e", action="store_true", help="draw polygon edges (quads as quads)")
+    p.add_argument("--feature-lines", action=OptionalValue, accepts=_is_feature_value, const=DEFAULT_FEATURE_ANGLE,
+                   default=None, metavar="DEG|marked",
+                   help="draw sharp edges as lines: those whose faces bend by more than DEG degrees (default 30), "
+                        "or 'marked': those the file marks (OBJ smoothing-group borders, 't crease' tags); the word "
+                        "after it is its value only if it is a number or 'marked'")
     p.add_argument("--size", "-s", default=None, metavar="WxH",
                    help="picture size for one mesh (default 800x600), size of each panel for several "
                         "(default 400x400)")
-    p.add_argument("--grid", nargs="?", const="auto", default=None, metavar="RxC",
+    p.add_argument("--grid", action=OptionalValue, accepts=_is_grid, const="auto", default=None, metavar="RxC",
                    help="arrange several meshes in a grid: RxC, or near-square without a value "
                         "(default: one row)")
     p.add_argument("--shading", choices=["smooth", "flat"], default="smooth", help="default smooth")
@@ -116,6 +143,19 @@ def parse_range(text: str):
     except ValueError:
         raise ParameterError(f"--range must be LO,HI; got {text!r}") from None
     return lo, hi
+
+
+def parse_feature_lines(value) -> float | str:
+    """``--feature-lines``: an angle in [0, 180] degrees, or ``"marked"``."""
+    if value == "marked":
+        return value
+    try:
+        angle = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(f"--feature-lines must be an angle in degrees or 'marked', got {value!r}") from None
+    from .. import params
+
+    return params.number("--feature-lines", angle, lo=0.0, hi=180.0)
 
 
 def reference_of(color: str) -> str | None:
@@ -152,8 +192,14 @@ def run(o: RenderOptions, source: str | Sequence[str], target: str, report: Repo
         raise ParameterError(f"--labels: {len(o.labels)} titles for {len(meshes)} meshes")
     up = up_axis(o.up, meshes[0])
     front = None if o.front == "auto" else o.front
+    lines = o.feature_lines
+    if lines == "marked":          # the edges each file marks, a malformed tag told with its file's name
+        from .features import marked_edges
+
+        lines = [m.topology.edges[marked_edges(m, a).sharp] for m, a in zip(meshes, inputs)]
+        lines = lines[0] if len(meshes) == 1 and o.grid is None else lines
     common = dict(color=color, reference=reference, view=o.view, up=up, front=front, edges=o.edges,
-                  shading=o.shading, colorbar=not o.no_colorbar, cmap=o.cmap, clim=o.clim)
+                  shading=o.shading, colorbar=not o.no_colorbar, cmap=o.cmap, clim=o.clim, feature_lines=lines)
     if len(meshes) == 1 and o.grid is None:
         label = None if o.no_labels or not o.labels else o.labels[0]
         img = render(meshes[0], out, size=o.size or (800, 600), label=label, **common)

@@ -122,8 +122,12 @@ class StudioServer:
                 self._loop.close()
                 started.set()
                 return
-            if solve:
-                self._loop.call_soon(hub_of(self._app).solve)
+            if solve:                     # under way when the constructor returns
+
+                async def start():
+                    hub_of(self._app).solve()
+
+                self._loop.run_until_complete(start())
             started.set()
             self._loop.run_forever()
 

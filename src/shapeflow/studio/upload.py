@@ -21,11 +21,17 @@ import threading
 
 from ..errors import MeshError
 
-__all__ = ["read_upload", "memory_limit", "time_limit", "stop_readers"]
+__all__ = ["read_upload", "memory_limit", "time_limit", "stop_readers", "readers_under_way"]
 
 #: the reading children under way (every studio of this process), so that a studio ending kills them
 _CHILDREN: set = set()
 _LOCK = threading.Lock()
+
+
+def readers_under_way() -> int:
+    """How many reading children are running now."""
+    with _LOCK:
+        return len(_CHILDREN)
 
 
 def stop_readers() -> None:
