@@ -30,7 +30,7 @@ from ..errors import DataLossWarning, ParameterError
 from .report import Reporter
 
 __all__ = ["FeatureSettings", "EdgeFile", "Marks", "read_edge_file", "add_feature_options", "marked_edges",
-           "feature_kwargs", "drawn_edges", "crease_tags", "with_crease_tags"]
+           "feature_kwargs", "drawn_edges", "with_crease_tags"]
 
 _SPACE = np.frombuffer(b" \t\r\n\x0b\x0c", np.uint8)
 
@@ -349,35 +349,18 @@ def drawn_edges(mesh, kw: dict) -> np.ndarray | None:
 
 # -- creases written back ---------------------------------------------------------------------------
 
-def crease_tags(creases) -> list[tuple[str, str]]:
-    """``result.creases`` (pairs, Blender's values c) as OBJ ``t crease 2/1 i j s`` lines: one per edge
-    with a positive sharpness s = 10·c² (10: infinitely sharp), 0-based as OpenSubdiv reads them."""
-    pairs, c = (np.asarray(x) for x in creases)
-    s = np.minimum(10.0 * np.square(c.astype(np.float64)), 10.0)
-    keep = s > 0
-    if not keep.any():
-        return []
-    p = pairs[keep].astype(np.int64)
-    rest = np.char.add(np.char.add(np.char.add("crease 2/1 ", p[:, 0].astype(str)), " "), p[:, 1].astype(str))
-    rest = np.char.add(np.char.add(rest, " "), np.char.mod("%.17g", s[keep]))
-    return [("t", r) for r in rest.tolist()]
-
-
-def _is_crease_tag(element) -> bool:
-    tag, rest = element
-    return tag == "t" and rest.split()[:1] == ["crease"]
-
-
 def with_crease_tags(out, levels_changed_numbering: bool):
     """``out`` (a subdivision result) whose OBJ output carries its ``creases`` as ``t crease`` lines in
     place of the input's; the input's other ``l``/``p``/``t`` lines are kept while the numbering
     holds, and named in a DataLossWarning otherwise."""
     meta = dict(out.metadata.get("obj") or {})
     elements = list(meta.get("elements") or ())
+    from ..io.obj import crease_tags, is_crease_tag
+
     tags = crease_tags(out.creases) if getattr(out, "creases", None) is not None else []
-    if not tags and not any(map(_is_crease_tag, elements)):
+    if not tags and not any(map(is_crease_tag, elements)):
         return out
-    others = [e for e in elements if not _is_crease_tag(e)]
+    others = [e for e in elements if not is_crease_tag(e)]
     if others and levels_changed_numbering:
         warnings.warn(DataLossWarning(f"{len(others)} 'l'/'p'/'t' lines refer to the input's vertex numbering, "
                                       "which subdivision changed: not written"), stacklevel=2)
