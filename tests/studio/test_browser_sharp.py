@@ -1,7 +1,8 @@
 """"Keep sharp edges" in headless Chromium: clicking the toggle sets the session's setting, draws
 the box's sharp edges as lines (the scene's line count and the pixels of their colour), which follow
 the slider's shape and go away with the toggle; the angle typed in the panel reaches the session,
-a refused one shows the error and puts the field back; toggling is no edit."""
+a refused one shows the error and puts the field back; toggling is no edit; a file that marks edges
+offers them."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ from conftest import need
 need("aiohttp", "aiohttp (the 'studio' extra)")
 need("selenium.webdriver", "selenium (a test dependency)")
 from browser import CHROMIUM, DRIVER, chromium_page, idle, pixels, shown, type_into, wait  # noqa: E402
-from test_session_sharp import HALF, K, box_parts, flatness  # noqa: E402
+from test_session_sharp import HALF, K, box_parts, flatness, obj_with_groups  # noqa: E402
 
 from shapeflow.studio.headless import set_control  # noqa: E402
 
@@ -93,3 +94,29 @@ def test_the_toggle_draws_the_sharp_edges_and_sets_the_session(page, server):
     idle(page, server)
     assert line_pixels(page) == 0
     assert s.version == version
+
+
+def test_a_file_that_marks_edges_offers_them_in_the_panel(page, tmp_path):
+    """The box as an OBJ with a smoothing group a side: the panel offers its 72 marked edges (the plain
+    box did not), and ticking them at 180° (no edge by angle) keeps and draws exactly those."""
+    import shapeflow as sf
+    from shapeflow.studio import StudioServer
+
+    assert not page.find_element("id", "sharp-marked-row").is_displayed()       # the plain box marks none
+    box, sides = box_parts()
+    mesh = sf.load(obj_with_groups(box, sides, tmp_path / "groups.obj"))
+    with StudioServer(mesh, lams=[0.0, -120.0], name="groups.obj") as server, \
+            chromium_page(server.url, size=(1280, 800)) as d:
+        row = d.find_element("id", "sharp-marked-row")
+        assert row.is_displayed() and f"({12 * K})" in row.text and "marked edges" in row.text
+        type_into(d, "sharp-angle", "180", enter=True)
+        wait(d, "return window.studio.sharp.angle === 180 && window.studio.pending === 0")
+        d.find_element("id", "sharp-marked").click()
+        d.find_element("id", "sharp").click()
+        wait(d, f"return window.studio.sharpLines() === {12 * K} && window.studio.pending === 0")
+        assert server.session.features == {"on": True, "angle": 180.0, "marked": True}
+        idle(d, server)
+        assert line_pixels(d, "sharp-marked.png") > 600
+        last = d.execute_script("const r = document.getElementById('download').getBoundingClientRect();"
+                                "return [r.bottom, document.getElementById('panel').scrollHeight]")
+        assert last[0] <= 800 and last[1] <= 800                # the panel still fits 1280×800

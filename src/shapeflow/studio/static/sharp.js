@@ -38,8 +38,9 @@ function show(m, typed = false) {      // the controls as the session has them (
   if (!typed || document.activeElement !== $("sharp-angle")) $("sharp-angle").value = m.angle;
   $("sharp-marked").checked = m.marked;
   $("sharp-marked-row").style.display = m.marked_count ? "" : "none";
-  $("sharp-marked-row").title = `the ${m.marked_count} edges the file marks sharp (smoothing groups, `
-                                + "'t crease' tags, split normals)";
+  $("sharp-marked-count").textContent = `(${m.marked_count.toLocaleString()})`;
+  $("sharp-marked-row").title = "the edges the file marks sharp (smoothing-group borders, 't crease' tags, "
+                                + "split normals), kept with the angle's";
   if (lines.object) { lines.object.visible = m.on; redraw(); }
 }
 onText("features", (m) => { Object.assign(studio.sharp, m); show(studio.sharp, true); });
