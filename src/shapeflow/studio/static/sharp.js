@@ -17,10 +17,13 @@ function drop() {
   lines.object.removeFromParent(); lines.object.geometry.dispose(); lines.object.material.dispose();
   lines.object = null;
 }
-function build() {
+function build(tries = 0) {
   drop();
   if (!lines.pairs.length) { redraw(); return; }
-  if (!mesh.surface) { setTimeout(build, 50); return; }        // the shape arrives before its edges; just in case
+  if (!mesh.surface) {                 // the server sends the shape before its edges: this waits only in case
+    if (tries < 100) setTimeout(() => build(tries + 1), 50);
+    return;
+  }
   const g = new THREE.BufferGeometry();
   g.setAttribute("position", mesh.geometry.getAttribute("position"));    // shared: the lines follow the shape
   g.setIndex(new THREE.BufferAttribute(lines.pairs, 1));
