@@ -62,6 +62,8 @@ def _views(session: StudioSession) -> dict:
 class Hub:
     """The session, the family's options and the sockets of the open tabs."""
 
+    sharp_sent = None       # the sharp edges last sent to the tabs (:meth:`sharp_frames`)
+
     def __init__(self, session: StudioSession, lams, name: str = ""):
         self.lams = list(lams)
         self.options: dict = {}
@@ -84,7 +86,6 @@ class Hub:
         if old is not None and old is not session:     # a preference, as the family's options: kept
             session.set_features(old.features["on"], old.features["angle"])
         self.session = session
-        self.sharp_sent = None
         mesh = session.base             # what the page draws: the welded mesh
         self.tris = fan_triangles(mesh)
         self.edges = mesh.topology.edges
@@ -353,9 +354,10 @@ async def _on_undo(hub: Hub, m: dict, *, redo: bool = False) -> list:
     return [frame(b"POS0", hub.shown(), "<f4"), frame(b"WGT0", s.weights, "<f4"), hub.state()]
 
 
-HANDLERS = {"lam": _on_lam, "field": _on_field, "options": _on_options, "solve": _on_solve,
+HANDLERS = {"features": _on_features,
+            "lam": _on_lam, "field": _on_field, "options": _on_options, "solve": _on_solve,
             "begin": _on_begin, "end": _on_end, "paint": _on_paint, "dab": _on_dab, "apply": _on_apply,
-            "undo": _on_undo, "redo": functools.partial(_on_undo, redo=True), "features": _on_features}
+            "undo": _on_undo, "redo": functools.partial(_on_undo, redo=True)}
 assert HANDLERS.keys() == protocol.MESSAGES.keys()
 
 
