@@ -62,8 +62,6 @@ def _views(session: StudioSession) -> dict:
 class Hub:
     """The session, the family's options and the sockets of the open tabs."""
 
-    sharp_sent = None       # the sharp edges last sent to the tabs (:meth:`sharp_frames`)
-
     def __init__(self, session: StudioSession, lams, name: str = ""):
         self.lams = list(lams)
         self.options: dict = {}
@@ -153,6 +151,8 @@ class Hub:
         self.stale = True
         if self.lam != 0 and not self.session.in_stroke:
             self.solve()
+
+    sharp_sent = None       # the sharp edges last sent to the tabs (:meth:`sharp_frames`)
 
     def sharp_frames(self) -> list:
         """The "Keep sharp edges" setting and the sharp edges it keeps at the current shape (``SHP0``: vertex
@@ -354,10 +354,9 @@ async def _on_undo(hub: Hub, m: dict, *, redo: bool = False) -> list:
     return [frame(b"POS0", hub.shown(), "<f4"), frame(b"WGT0", s.weights, "<f4"), hub.state()]
 
 
-HANDLERS = {"features": _on_features,
-            "lam": _on_lam, "field": _on_field, "options": _on_options, "solve": _on_solve,
+HANDLERS = {"lam": _on_lam, "field": _on_field, "options": _on_options, "solve": _on_solve,
             "begin": _on_begin, "end": _on_end, "paint": _on_paint, "dab": _on_dab, "apply": _on_apply,
-            "undo": _on_undo, "redo": functools.partial(_on_undo, redo=True)}
+            "undo": _on_undo, "redo": functools.partial(_on_undo, redo=True), "features": _on_features}
 assert HANDLERS.keys() == protocol.MESSAGES.keys()
 
 
