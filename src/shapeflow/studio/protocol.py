@@ -31,6 +31,8 @@ dab      center, radius, lam (λ of the brush), inflate,   one dab of the enhanc
 apply    value (λ)                                        the preview at λ becomes the shape
 undo     —                                                take back the last step
 redo     —                                                do it again
+features on (flag), angle (0..180°, default 30),          keep sharp edges in the family and the
+         marked (flag: the file's marked edges too)       brushes (not an edit), drawn as lines
 ======== ================================================ =========================================
 """
 
@@ -119,6 +121,8 @@ MESSAGES: dict[str, dict[str, Field]] = {
     "apply": {"value": LAM},
     "undo": {},
     "redo": {},
+    "features": {"on": Field("flag"), "angle": Field("number", 0.0, 180.0, default=30.0),
+                 "marked": Field("flag", default=False)},
 }
 
 

@@ -31,6 +31,7 @@ from .. import params
 from ..errors import ParameterError
 from ..mesh import Mesh
 from .history import History
+from .sharp import SharpFeatures
 
 __all__ = ["StudioSession", "FamilyStatus", "smooth_falloff"]
 
@@ -56,7 +57,7 @@ class FamilyStatus:
     error: str | None = None
 
 
-class StudioSession:
+class StudioSession(SharpFeatures):
     """The editable state of one studio page (see the module docstring for the thread model).
 
     Parameters
@@ -289,12 +290,13 @@ class StudioSession:
             key = (self._shape_version, bool(inflate))
             if self._brush is None or self._brush_key != key:
                 mesh = self._base.with_vertices(self._V.copy())
+                sharp = self._brush_features(inflate)       # the sharp edges kept (studio.sharp)
                 # undo_limit=0: the session keeps the history; the brush keeps none of its own
                 self._brush = (InflateBrush(mesh, radius=radius, strength=strength, weights=self._w.copy(),
                                             undo_limit=0) if inflate else
-                               Brush(mesh, radius=radius, lam=lam, weights=self._w.copy(), undo_limit=0))
+                               Brush(mesh, radius=radius, lam=lam, weights=self._w.copy(), undo_limit=0, **sharp))
             b = self._brush
-            b.set_weights(self._w.copy())     # painted since the brush was built: no rebuild for that
+            b.set_weights(self._dab_weights(self._w.copy()))     # painted since the brush was built: no rebuild
             b.radius = radius
             if inflate:
                 b.strength = strength
@@ -398,6 +400,7 @@ class StudioSession:
             mesh = self._base.with_vertices(self._V.copy())
             w = self._w.copy()
             shape = self._shape_version
+            flow_options = {**self.feature_options(), **flow_options}     # sharp edges kept (studio.sharp)
             self._status = FamilyStatus("running", 0, int(lam_arr.size), lam_arr.tolist())
 
         def progress(done, total):
