@@ -208,7 +208,7 @@ def row_scale(mass: np.ndarray, lam_abs: float, w: np.ndarray, rows: np.ndarray,
     """
     c = np.zeros_like(mass)
     with np.errstate(over="ignore", divide="ignore"):
-        c[rows] = mass[rows] / (lam_abs * w[rows])
+        np.divide(mass, lam_abs * w, out=c, where=rows)     # the rows' quotients, no gathers
     limit = np.finfo(np.float64).max / (64.0 * max(coord_scale, 1.0))
     c[c > limit] = np.inf
     return c
