@@ -73,7 +73,7 @@ def build_operator(mesh: Mesh, V: np.ndarray, scheme: str, blender: bool, normal
         mass = deg if normalized else 4.0 * ring * deg
     else:
         boundary = t.boundary_vertex_mask.copy()
-        ub = edges[t.boundary_edge_mask]     # few: only these are tested for locks
+        ub = t.boundary_edges                # few: only these are tested for locks (cached with the mask)
         ub = ub[~locked[ub[:, 0]] & ~locked[ub[:, 1]]]
         el = lengths(ub)
         ue = 1.0 / el  # short edges were locked above, so el > 0 here
