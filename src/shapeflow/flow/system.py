@@ -248,7 +248,8 @@ class SystemBuilder:
         self.lam_border = lam_border
         self._op0: Operator | None = None
         self._op0_lock = threading.Lock()
-        self._coord_scale = float(np.abs(mesh.vertices).max()) if mesh.n_vertices else 1.0
+        V = mesh.vertices      # max |x| over the coordinates, without a temporary
+        self._coord_scale = float(max(V.max(), -V.min())) if mesh.n_vertices else 1.0
 
     def operator(self, V: np.ndarray | None = None) -> Operator:
         """The operator at the input positions (cached) or at ``V``."""
