@@ -187,22 +187,29 @@ def interleaved_sizes(dabs: int, lam: float) -> None:
     for name, brush, _, _, acc in cases:
         _phase_timers(brush, acc)
     total = {c[0]: [] for c in cases}
+    cpu = {c[0]: [] for c in cases}
     for j in range(dabs):
         for name, brush, centres, radii, acc in cases:
             brush.radius = radii[j]
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             brush.dab(centres[j])
-            dt = time.perf_counter() - t0
+            dt, dc = time.perf_counter() - t0, time.process_time() - c0
+            counts = {k: len(v) for k, v in acc.items()}
             brush.undo()
+            for k, m in counts.items():          # the undo's cache update is not the dab's
+                del acc[k][m:]
             if j >= 3:
                 total[name].append(dt)
+                cpu[name].append(dc)
             else:
                 acc.clear()
     for name, brush, _, _, acc in cases:
         t = np.array(total[name])
-        print(f"  {name}: {fmt_ms(t)}; " + ", ".join(f"{k} {1e3 * statistics.median(v):.2f}" for k, v in acc.items()))
+        print(f"  {name}: {fmt_ms(t)}, CPU {1e3 * np.median(cpu[name]):.2f} ms; "
+              + ", ".join(f"{k} {1e3 * statistics.median(v):.2f}" for k, v in acc.items()))
     a, b = (statistics.median(total[c[0]]) for c in cases)
-    print(f"  large / small: {b / a:.2f}")
+    ca, cb = (statistics.median(cpu[c[0]]) for c in cases)
+    print(f"  large / small: {b / a:.2f} (wall), {cb / ca:.2f} (CPU)")
 
 
 def _phase_timers(brush, acc: dict) -> None:
