@@ -4,6 +4,7 @@
     python benchmarks/bench_brush.py --quick     # fewer dabs, skip the largest mesh
     python benchmarks/bench_brush.py --solvers   # also compare the linear solvers per dab size (auto = split)
     python benchmarks/bench_brush.py --profile   # also split each dab into its phases
+    python benchmarks/bench_brush.py --sizes     # Suzanne 8K against 126K, dabs interleaved (size independence)
 
 Figure 10 plots sculpted vertices per second for dabs of ~800, ~1,800 and
 ~2,600 vertices on models of 12K, 40K and 164K vertices (paper: 800 vertices
@@ -19,6 +20,9 @@ so the next one sees the input surface and the targeted vertex count
 (``--keep`` keeps them: repeated λ = -50 dabs inflate small meshes enough to
 empty the spheres).  A last case times a stroke of overlapping dabs
 (spacing 0.25 r) that are all kept.
+``--sizes`` times 2,600-vertex dabs on Suzanne subdivided twice (7,958 vertices) and four times
+(126,290) in one loop, one dab on each mesh in turn, so a change of the machine's load touches
+both alike; it prints each mesh's median and phases, and their ratio.
 "vertices/s" counts the solved (moved) vertices.  The machine has 2 cores
 that other jobs share; the load average is printed with the results.
 """
@@ -116,29 +120,13 @@ def fmt_ms(t: np.ndarray) -> str:
 def profile_phases(brush, centres, radii):
     """Median time of each phase of a dab (monkeypatched timers)."""
     acc: dict = {}
-
-    def wrap(obj, name, label):
-        f = getattr(obj, name)
-
-        def g(*a, **k):
-            t0 = time.perf_counter()
-            out = f(*a, **k)
-            acc.setdefault(label, []).append(time.perf_counter() - t0)
-            return out
-        setattr(obj, name, g)
-        return f
-
-    wrap(brush, "_query", "spatial query")
-    wrap(brush, "_classify", "rim/locks/weights")
-    wrap(brush._local_solver, "solve", "linear solve (incl. local RCM)")
-    wrap(brush, "_solve_region", "assembly + solve")
-    wrap(brush, "_moved", "cache update (commit)")
+    _phase_timers(brush, acc)
     for c, r in zip(centres, radii):
         brush.radius = r
         brush.dab(c)
     for k in list(acc):
         print(f"      {k:32s} {1e3 * statistics.median(acc[k]):6.2f} ms")
-    for name in ("_query", "_classify", "_solve_region", "_moved"):
+    for name in ("_query", "_classify", "_solve_region", "_apply", "_moved"):
         brush.__dict__.pop(name, None)
     brush._local_solver.__dict__.pop("solve", None)
 
@@ -183,6 +171,67 @@ def compare_solvers(mesh, lam, centres, radii):
     return int(np.median(ks)), {m: 1e3 * statistics.median(v) for m, v in out.items() if v}
 
 
+def suzanne_sizes():
+    """Suzanne subdivided twice (7,958 vertices) and four times (126,290)."""
+    m = sf.load(SHARED / "suzanne_hybrid_open.obj")
+    return [(f"suzanne x{k} ({n:,})", sf.subdivide(m, k)) for k, n in ((2, 7958), (4, 126290))]
+
+
+def interleaved_sizes(dabs: int, lam: float) -> None:
+    """2,600-vertex dabs on a small and a large mesh, alternating, with each dab's phases."""
+    cases = []
+    for name, mesh in suzanne_sizes():
+        brush = sf.Brush(mesh, lam=lam, radius=1.0)
+        centres, radii = centres_and_radii(mesh, 2600, dabs, seed=2600)
+        cases.append((name, brush, centres, radii, {}))
+    for name, brush, _, _, acc in cases:
+        _phase_timers(brush, acc)
+    total = {c[0]: [] for c in cases}
+    cpu = {c[0]: [] for c in cases}
+    for j in range(dabs):
+        for name, brush, centres, radii, acc in cases:
+            brush.radius = radii[j]
+            t0, c0 = time.perf_counter(), time.process_time()
+            brush.dab(centres[j])
+            dt, dc = time.perf_counter() - t0, time.process_time() - c0
+            counts = {k: len(v) for k, v in acc.items()}
+            brush.undo()
+            for k, m in counts.items():          # the undo's cache update is not the dab's
+                del acc[k][m:]
+            if j >= 3:
+                total[name].append(dt)
+                cpu[name].append(dc)
+            else:
+                acc.clear()
+    for name, brush, _, _, acc in cases:
+        t = np.array(total[name])
+        print(f"  {name}: {fmt_ms(t)}, CPU {1e3 * np.median(cpu[name]):.2f} ms; "
+              + ", ".join(f"{k} {1e3 * statistics.median(v):.2f}" for k, v in acc.items()))
+    a, b = (statistics.median(total[c[0]]) for c in cases)
+    ca, cb = (statistics.median(cpu[c[0]]) for c in cases)
+    print(f"  large / small: {b / a:.2f} (wall), {cb / ca:.2f} (CPU)")
+
+
+def _phase_timers(brush, acc: dict) -> None:
+    """Time a brush's phases into ``acc`` (label -> list of seconds) from now on."""
+    def wrap(obj, name, label):
+        f = getattr(obj, name)
+
+        def g(*a, **k):
+            t0 = time.perf_counter()
+            out = f(*a, **k)
+            acc.setdefault(label, []).append(time.perf_counter() - t0)
+            return out
+        setattr(obj, name, g)
+
+    wrap(brush, "_query", "query")
+    wrap(brush, "_classify", "classify")
+    wrap(brush, "_solve_region", "assembly+solve")
+    wrap(brush._local_solver, "solve", "linear solve")
+    wrap(brush, "_apply", "commit")
+    wrap(brush, "_moved", "cache update (in commit)")
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="12 dabs per case, skip the 187K mesh")
@@ -193,6 +242,8 @@ def main(argv=None) -> int:
     ap.add_argument("--solvers", action="store_true", help="compare auto (split) / banded / SuperLU / cholespy / dense")
     ap.add_argument("--profile", action="store_true", help="median time of each phase of a dab")
     ap.add_argument("--keep", action="store_true", help="keep every dab (no undo between timed dabs)")
+    ap.add_argument("--sizes", action="store_true",
+                    help="only Suzanne 8K against 126K, 2,600-vertex dabs interleaved")
     ap.add_argument("--json", metavar="PATH", help="also write the table (for docs/gallery.py fig10)")
     args = ap.parse_args(argv)
     dabs = 12 if args.quick else args.dabs
@@ -200,6 +251,10 @@ def main(argv=None) -> int:
           f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     how = "each kept" if args.keep else "each committed, then undone untimed"
     print(f"λ = {args.lam:g}, {dabs - 3} timed dabs per case (random centres, {how})\n")
+    if args.sizes:
+        interleaved_sizes(dabs, args.lam)
+        print(f"\nload average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        return 0
     table = []
     for name, mesh, t_load in load_meshes(args.quick):
         t0 = time.perf_counter()

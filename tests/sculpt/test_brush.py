@@ -486,6 +486,26 @@ def test_spatial_index_stays_exact_as_vertices_move():
     assert b._far_count > 0 or b.tree_rebuilds > 1
 
 
+def test_undone_vertices_leave_the_far_list():
+    """A vertex that moved farther than tau from its indexed position is checked one by one; once an
+    undo puts it back, the index finds it again and the list no longer holds it (the list does not
+    grow with dabs that are undone), and queries stay exact."""
+    mesh = cube_sphere(10)
+    b = sf.Brush(mesh, lam=-200.0, radius=0.5, rebuild_fraction=0.01)
+    b.dab(mesh.vertices[0])          # builds the index
+    b.undo()
+    rebuilds = b.tree_rebuilds
+    for c in mesh.vertices[[0, 40, 200]]:
+        b.dab(c)
+        assert b._far_count > 0                     # moved far beyond tau = 0.005
+        b.undo()
+        assert b._far_count == 0 and not b._far.any()
+        for q in (c, c + 0.1):
+            brute = np.flatnonzero(np.linalg.norm(b.vertices - q, axis=1) <= b.radius)
+            assert np.array_equal(b.inside(q), brute)
+    assert b.tree_rebuilds == rebuilds
+
+
 @pytest.mark.parametrize("kernels", ["force", "off"])
 def test_spatial_index_query_is_exact(kernels):
     """Both spatial indexes of the sculpt kernels (the compiled grid, SciPy's k-d tree) find exactly the

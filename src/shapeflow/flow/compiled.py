@@ -193,6 +193,107 @@ def max_row_distance(A, B):
     return np.sqrt(best)
 
 
+def step_rhs(c, V, X, held, r, s, e):
+    """``FlowKernels.step_rhs`` in one pass over the rows (and one over the couplings)."""
+    n = V.shape[0]
+    out = np.empty((n, 3))
+    if r.size:
+        acc = np.zeros((n, 3))       # calloc: pages of rows without a coupling are never touched
+        _coupling_sums(r, s, e, X, acc)
+        _step_rhs(c, V, X, held, r, acc, 0.0, out)
+    else:
+        _step_rhs(c, V, X, held, r, _NO_ROWS3, -0.0, out)
+    return out
+
+
+_NO_ROWS3 = np.zeros((0, 3))
+
+
+@njit(cache=True)
+def _coupling_sums(r, s, e, X, acc):
+    """acc[r_q] += e_q X[s_q], in coupling order (``np.bincount``'s order)."""
+    for q in range(r.size):
+        i = np.uint64(r[q])
+        j = np.uint64(s[q])
+        acc[i, 0] += e[q] * X[j, 0]
+        acc[i, 1] += e[q] * X[j, 1]
+        acc[i, 2] += e[q] * X[j, 2]
+
+
+@njit(cache=True)
+def _step_rhs(c, V, X, held, r, acc, zero, out):
+    """out = C·V, X on the held rows, then + ``zero`` everywhere (NumPy adds a bincount's 0.0 to the rows
+    without a coupling: x + 0.0, which turns −0.0 into +0.0; ``zero`` = −0.0 without couplings, a no-op)
+    and + ``acc`` on the coupled rows (their sums; a sum started at +0.0 is never −0.0)."""
+    for i in range(V.shape[0]):
+        ci = c[i]
+        out[i, 0] = ci * V[i, 0] + zero
+        out[i, 1] = ci * V[i, 1] + zero
+        out[i, 2] = ci * V[i, 2] + zero
+    for q in range(held.size):
+        h = np.uint64(held[q])
+        out[h, 0] = X[h, 0] + zero
+        out[h, 1] = X[h, 1] + zero
+        out[h, 2] = X[h, 2] + zero
+    for q in range(r.size):        # each coupled row gets its sums once: later visits add 0.0 to a value
+        i = np.uint64(r[q])           # that is not −0.0, which changes nothing
+        out[i, 0] += acc[i, 0]
+        out[i, 1] += acc[i, 1]
+        out[i, 2] += acc[i, 2]
+        acc[i, 0] = 0.0
+        acc[i, 1] = 0.0
+        acc[i, 2] = 0.0
+
+
+def step_result(X, V, factor, flip, axes, out):
+    """``FlowKernels.step_result`` in one pass."""
+    f = np.ones(0) if factor is None else np.ascontiguousarray(factor, dtype=np.float64)
+    keep = np.array([0.0 if not a else 1.0 for a in axes])
+    return int(_step_result(X, V, f, -1.0 if flip else 1.0, keep, out))
+
+
+@njit(cache=True)
+def _step_result(X, V, factor, f0, keep, out):
+    """out = V + f·(X − V) row by row (the reference's operations: X − V, times ±1, 0 on dropped axes,
+    then V +), a row with a non-finite value taken as V; returns the number of such rows."""
+    n_bad = 0
+    per_row = factor.size > 0
+    for i in range(V.shape[0]):
+        v0 = V[i, 0]
+        v1 = V[i, 1]
+        v2 = V[i, 2]
+        x0 = X[i, 0]
+        x1 = X[i, 1]
+        x2 = X[i, 2]
+        if not (np.isfinite(x0) and np.isfinite(x1) and np.isfinite(x2)):
+            n_bad += 1
+            x0 = v0
+            x1 = v1
+            x2 = v2
+        f = factor[i] if per_row else f0
+        d0 = x0 - v0
+        d1 = x1 - v1
+        d2 = x2 - v2
+        if per_row:
+            d0 *= f
+            d1 *= f
+            d2 *= f
+        elif f < 0.0:
+            d0 = -d0
+            d1 = -d1
+            d2 = -d2
+        if keep[0] == 0.0:
+            d0 = 0.0
+        if keep[1] == 0.0:
+            d1 = 0.0
+        if keep[2] == 0.0:
+            d2 = 0.0
+        out[i, 0] = v0 + d0
+        out[i, 1] = v1 + d1
+        out[i, 2] = v2 + d2
+    return n_bad
+
+
 class FlowNumba(FlowKernels):
     """The flow family compiled: the interior system in one pass, and the lean layout."""
 
@@ -216,6 +317,16 @@ class FlowNumba(FlowKernels):
 
     def scaled_abs_row_max(self, A, s, free):
         return scaled_abs_row_max(A.indptr, A.indices, A.data, s)
+
+    def step_rhs(self, c, V, X, held, r, s, e):
+        if not (V.dtype == X.dtype == c.dtype == np.float64 and V.ndim == X.ndim == 2 and V.shape[1] == 3):
+            return super().step_rhs(c, V, X, held, r, s, e)
+        return step_rhs(c, V, X, held, r, s, e)
+
+    def step_result(self, X, V, factor, flip, axes, out):
+        if not (X.dtype == V.dtype == out.dtype == np.float64 and V.ndim == 2 and V.shape[1] == 3):
+            return super().step_result(X, V, factor, flip, axes, out)
+        return step_result(X, V, factor, flip, axes, out)
 
     def take(self, a, idx):
         return take(a, idx)

@@ -62,6 +62,40 @@ class FlowKernels(Family):
         b = free[p1] & ~free[p0]
         return np.concatenate([p0[a], p1[b]]), np.concatenate([p1[a], p0[b]]), np.concatenate([pw[a], pw[b]])
 
+    def step_rhs(self, c: np.ndarray, V: np.ndarray, X: np.ndarray, held: np.ndarray, r: np.ndarray,
+                 s: np.ndarray, e: np.ndarray) -> np.ndarray:
+        """The interior system's right-hand side, a new (n, 3) array: C·V, the ``held`` rows (identity
+        rows of A) X, plus Σ e·X[s] over the couplings into their rows ``r`` (summed row by row in
+        coupling order, then added)."""
+        rhs = c[:, None] * V          # c = 0 on held rows
+        rhs[held] = X[held]
+        if r.size:
+            for k in range(3):
+                rhs[:, k] += np.bincount(r, e * X[s, k], minlength=V.shape[0])
+        return rhs
+
+    def step_result(self, X: np.ndarray, V: np.ndarray, factor: np.ndarray | None, flip: bool, axes: np.ndarray,
+                    out: np.ndarray) -> int:
+        """A step's new positions ``out = V + f·(X − V)`` (``out`` may be X): rows of X with a non-finite
+        value count as V; f = ``factor`` per row (±1) when given, else −1 with ``flip``, else 1; 0 on
+        the axes not in ``axes``.  Returns the number of non-finite rows."""
+        n_bad = 0
+        if not np.all(np.isfinite(X)):
+            bad = ~np.isfinite(X).all(axis=1)
+            n_bad = int(bad.sum())
+            if out is not X:
+                X = X.copy()
+            X[bad] = V[bad]
+        d = np.subtract(X, V, out=out)
+        if factor is not None:
+            d *= factor[:, None]
+        elif flip:
+            np.negative(d, out=d)
+        if not axes.all():
+            d[:, ~axes] = 0.0
+        np.add(V, d, out=d)
+        return n_bad
+
     def scaled_abs_row_max(self, A, s: np.ndarray, free: np.ndarray) -> float:
         """max over the ``free`` rows (those with s_i > 0) of s_i Σ_j |a_ij| s_j: a Gershgorin bound of S A S."""
         absA = sp.csr_matrix((np.abs(A.data), A.indices, A.indptr), shape=A.shape)

@@ -115,14 +115,10 @@ class FlowSolver:
         if curve_sys is not None:      # the feature curves, then the surface with them as boundary values
             X = solve_curves(V, X, curve_sys, lam)
             self._note_solver(curve_sys, report)
+        kern = accel.kernels("flow", V.shape[0])
         if interior_sys is not None:
-            r, s, e = interior_sys.coupling
             held = interior_sys.held
-            rhs = interior_sys.c[:, None] * V          # c = 0 on held rows
-            rhs[held] = X[held]                # identity rows of A
-            if r.size:
-                for k in range(3):
-                    rhs[:, k] += np.bincount(r, e * X[s, k], minlength=V.shape[0])
+            rhs = kern.step_rhs(interior_sys.c, V, X, held, *interior_sys.coupling)
             Xi = interior_sys.solver.solve(rhs, X, overwrite_b=True)   # rhs is ours: the CG's residual
             if interior_sys.solver.method == "cg" or interior_sys.solver.stats.fallback:
                 report.cg_iterations.append(interior_sys.solver.stats.iterations)
@@ -133,20 +129,15 @@ class FlowSolver:
             X = Xi
         self._note_solver(boundary_sys, report)
         self._note_solver(interior_sys, report)
-        if not np.all(np.isfinite(X)):
-            bad = ~np.isfinite(X).all(axis=1)
-            X[bad] = V[bad]
-            report.notes.append(f"{int(bad.sum())} vertices with a non-finite solution kept in place")
-        # V + sign (X - V), per vertex sign (boundary vertices follow λ_b), on the chosen axes
+        # V + sign (X - V), per vertex sign (boundary vertices follow λ_b), on the chosen axes;
+        # a row with a non-finite solution stays
         s_in, s_b = (1.0 if lam >= 0 else -1.0), (1.0 if lam_b >= 0 else -1.0)
-        d = np.subtract(X, V, out=None if X is V else X)
-        if s_in != s_b and boundary.any():
-            d *= np.where(boundary, s_b, s_in)[:, None]
-        elif s_in < 0:
-            np.negative(d, out=d)
-        if not axes.all():
-            d[:, ~axes] = 0.0
-        return np.add(V, d, out=d)
+        factor = np.where(boundary, s_b, s_in) if s_in != s_b and boundary.any() else None
+        out = np.empty_like(V) if X is V else X
+        n_bad = kern.step_result(X, V, factor, s_in < 0, axes, out)
+        if n_bad:
+            report.notes.append(f"{n_bad} vertices with a non-finite solution kept in place")
+        return out
 
     @accel.heavy
     def run(self, lam: float, *, iterations: int = 1, preserve_volume: bool = False,

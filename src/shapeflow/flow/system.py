@@ -73,7 +73,7 @@ def build_operator(mesh: Mesh, V: np.ndarray, scheme: str, blender: bool, normal
         mass = deg if normalized else 4.0 * ring * deg
     else:
         boundary = t.boundary_vertex_mask.copy()
-        ub = edges[t.boundary_edge_mask]     # few: only these are tested for locks
+        ub = t.boundary_edges                # few: only these are tested for locks (cached with the mask)
         ub = ub[~locked[ub[:, 0]] & ~locked[ub[:, 1]]]
         el = lengths(ub)
         ue = 1.0 / el  # short edges were locked above, so el > 0 here
@@ -208,7 +208,7 @@ def row_scale(mass: np.ndarray, lam_abs: float, w: np.ndarray, rows: np.ndarray,
     """
     c = np.zeros_like(mass)
     with np.errstate(over="ignore", divide="ignore"):
-        c[rows] = mass[rows] / (lam_abs * w[rows])
+        np.divide(mass, lam_abs * w, out=c, where=rows)     # the rows' quotients, no gathers
     limit = np.finfo(np.float64).max / (64.0 * max(coord_scale, 1.0))
     c[c > limit] = np.inf
     return c
@@ -248,7 +248,8 @@ class SystemBuilder:
         self.lam_border = lam_border
         self._op0: Operator | None = None
         self._op0_lock = threading.Lock()
-        self._coord_scale = float(np.abs(mesh.vertices).max()) if mesh.n_vertices else 1.0
+        V = mesh.vertices      # max |x| over the coordinates, without a temporary
+        self._coord_scale = float(max(V.max(), -V.min())) if mesh.n_vertices else 1.0
 
     def operator(self, V: np.ndarray | None = None) -> Operator:
         """The operator at the input positions (cached) or at ``V``."""

@@ -170,10 +170,18 @@ class SPDSolver:
         d = A.diagonal() if diagonal is None else np.asarray(diagonal, dtype=np.float64)
         self.positive = bool(d.size and d.min() > 0)     #: whether A's diagonal is positive
         self.diagonal = d                                  #: A's diagonal
-        if self.positive:      # the usual case: no temporaries
-            self.minv = np.divide(1.0, d)                  #: the Jacobi preconditioner (1 where d <= 0)
-        else:
-            self.minv = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 1.0)
+        self._minv = None
+
+    @property
+    def minv(self) -> np.ndarray:
+        """The Jacobi preconditioner: 1/d (1 where d <= 0), formed on first use (Gauss–Seidel needs none)."""
+        if self._minv is None:
+            d = self.diagonal
+            if self.positive:      # the usual case: no temporaries
+                self._minv = np.divide(1.0, d)
+            else:
+                self._minv = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 1.0)
+        return self._minv
 
     def solve(self, B: np.ndarray, X0: np.ndarray | None = None, *, overwrite_b: bool = False) -> np.ndarray:
         """X with A X = B; ``X0`` a starting guess (CG).  ``overwrite_b``: B may serve as

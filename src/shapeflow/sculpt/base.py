@@ -226,7 +226,16 @@ class BrushBase:
         if self._tree_V is None or idx.size == 0:
             return
         d = self._V.take(idx, axis=0, mode="clip") - self._tree_V.take(idx, axis=0, mode="clip")
-        far = (np.einsum("ij,ij->i", d, d) > self._tau * self._tau) & ~self._far[idx]
+        moved = np.einsum("ij,ij->i", d, d) > self._tau * self._tau
+        was = self._far.take(idx, mode="clip")
+        back = was & ~moved
+        if back.any():        # back within tau of its indexed position (an undo): the index finds it again
+            self._far[idx[back]] = False
+            kept = self._far_list[:self._far_count]
+            kept = kept[self._far.take(kept, mode="clip")]
+            self._far_list[:kept.size] = kept
+            self._far_count = kept.size
+        far = moved & ~was
         if far.any():
             new = idx[far]
             self._far[new] = True

@@ -30,13 +30,16 @@ allocated per dab):
   (:class:`~shapeflow.sculpt.grid.CellGrid` with the compiled kernels, else
   SciPy's ``cKDTree``), queried with ``r + tau`` (``tau = rebuild_fraction
   · r``); vertices that have since moved farther than ``tau`` are kept in a
-  short list checked directly, and the index is rebuilt (lazily, at the next
+  short list checked directly (a vertex leaves it when it comes back within
+  ``tau``, as after an undo), and the index is rebuilt (lazily, at the next
   dab) once that list exceeds ``max(4096, n/16)`` vertices or the radius
   shrank below ``tau/2``;
 * the incremental cotangent cache of
   :class:`~shapeflow.sculpt.cotan_cache.CotanCache`: after a committed dab
   only the triangles of the faces touching moved vertices are recomputed
   (round-off drift over very many dabs is removed by :meth:`Brush.refresh`);
+* the index arrays a dab reads (neighbours, pairs, faces, triangles) in
+  32 bits where the mesh's counts fit;
 * an internal vertex numbering (reverse Cuthill–McKee of the whole mesh,
   faces sorted to match; :mod:`~shapeflow.sculpt.numbering`): a dab touches a
   few contiguous stretches of every array (scanned meshes in file order got

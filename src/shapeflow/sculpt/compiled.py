@@ -178,13 +178,15 @@ def brush_assemble(S, R, loc, slot, vn_ptr, vn_nb, vn_pair, pw, V, cdiag, bl, Xb
 
 
 @njit(cache=True)
-def grid_query(keys, starts, order, dims, lo, h, V, far, c0, c1, c2, R, r, out, dist):
+def grid_query(keys, starts, order, points, dims, lo, h, V, far, c0, c1, c2, R, r, out, dist):
     """Vertices within ``r`` of (c0, c1, c2) at the positions ``V``, from a uniform grid.
 
     The grid (cell size ``h`` from ``lo``, ``dims`` cells per axis; occupied
     cell keys ``keys`` sorted, their vertices ``order[starts[p]:starts[p+1]]``)
-    holds positions that differ from ``V`` by at most R − r, except the
-    vertices flagged in ``far``, which are skipped (the caller checks them).
+    holds positions (``points``, in cell order) that differ from ``V`` by at most R − r, except the
+    vertices flagged in ``far``, which are skipped (the caller checks them).  A vertex whose
+    indexed position lies farther than R (with a relative margin of 1e-9 for rounding) from the
+    centre cannot be within r now: only the others are looked up in ``far`` and ``V``.
     Writes the found vertices and their distances to ``out`` and ``dist``
     (distance² summed x, y, z, as the NumPy query); returns their number.
     """
@@ -197,6 +199,8 @@ def grid_query(keys, starts, order, dims, lo, h, V, far, c0, c1, c2, R, r, out, 
         lo_[a] = int(min(max(fl, 0.0), float(dims[a])))
         hi_[a] = int(min(max(fh, -1.0), float(dims[a] - 1)))
     r2 = r * r
+    Rm = R * (1.0 + 1e-9)
+    R2 = Rm * Rm
     n = 0
     if lo_[0] > hi_[0] or lo_[1] > hi_[1] or lo_[2] > hi_[2]:
         return 0
@@ -208,7 +212,7 @@ def grid_query(keys, starts, order, dims, lo, h, V, far, c0, c1, c2, R, r, out, 
             ky = kxy % dims[1]
             kx = kxy // dims[1]
             if lo_[0] <= kx <= hi_[0] and lo_[1] <= ky <= hi_[1] and lo_[2] <= kz <= hi_[2]:
-                n = _grid_cell(starts, order, V, far, c0, c1, c2, r2, out, dist, p, n)
+                n = _grid_cell(starts, order, points, V, far, c0, c1, c2, r2, R2, out, dist, p, n)
         return n
     for i in range(lo_[0], hi_[0] + 1):
         for j in range(lo_[1], hi_[1] + 1):
@@ -216,14 +220,19 @@ def grid_query(keys, starts, order, dims, lo, h, V, far, c0, c1, c2, R, r, out, 
             kl = base + hi_[2]
             p = np.searchsorted(keys, base + lo_[2])
             while p < keys.size and keys[p] <= kl:
-                n = _grid_cell(starts, order, V, far, c0, c1, c2, r2, out, dist, p, n)
+                n = _grid_cell(starts, order, points, V, far, c0, c1, c2, r2, R2, out, dist, p, n)
                 p += 1
     return n
 
 
 @njit(inline="always")
-def _grid_cell(starts, order, V, far, c0, c1, c2, r2, out, dist, p, n):
+def _grid_cell(starts, order, points, V, far, c0, c1, c2, r2, R2, out, dist, p, n):
     for q in range(starts[p], starts[p + 1]):
+        ex = points[q, 0] - c0
+        ey = points[q, 1] - c1
+        ez = points[q, 2] - c2
+        if ex * ex + ey * ey + ez * ez > R2:     # indexed farther than R: not within r now
+            continue
         v = np.uint64(order[q])
         if far[v]:
             continue
@@ -244,7 +253,7 @@ class CompiledGrid(CellGrid):
     def query(self, V, far, c, R, r):
         """The vertices not flagged in ``far`` within ``r`` of ``c`` at the positions ``V`` (which differ
         from the indexed ones by at most R − r for them), and their distances."""
-        m = grid_query(self.keys, self.starts, self.order, self.dims, self.lo, self.h, V, far,
+        m = grid_query(self.keys, self.starts, self.order, self.points, self.dims, self.lo, self.h, V, far,
                        float(c[0]), float(c[1]), float(c[2]), float(R), float(r), self.out, self.dist)
         return self.out[:m].copy(), self.dist[:m].copy()
 

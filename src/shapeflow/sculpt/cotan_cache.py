@@ -10,7 +10,7 @@ from ..mesh import Mesh
 from ..operators.cotan import REL_EDGE_TOL
 from ..operators.pattern import operator_pattern
 from .base import serialised
-from .numbering import csr_by, csr_ranges
+from .numbering import csr_by, csr_ranges, index_dtype
 
 __all__ = ["CotanCache"]
 
@@ -69,6 +69,10 @@ class CotanCache:
         self._vn_ptr, order = csr_by(a, n)
         self._vn_nb = b[order]
         self._vn_pair = pid[order]
+        # the per-dab index arrays in 32 bits where they fit: half the bytes a dab reads from them
+        ix = index_dtype(max(n, P + 1, T, t.n_faces, t.face_indices.size) + 1)
+        for name in ("_vn_ptr", "_vn_nb", "_vn_pair", "_vf_ptr", "_vf_face", "_ft_ptr", "_tri_vertices", "_tri_pairs"):
+            setattr(self, name, np.ascontiguousarray(getattr(self, name), dtype=ix))
         # boundary (paper mode): vertices on a boundary edge; vertex -> boundary edges
         self._bmask = t.boundary_vertex_mask
         be = t.boundary_edges
@@ -82,7 +86,7 @@ class CotanCache:
         self._tri_degenerate = np.zeros(T, dtype=bool)
         self._pshort = np.zeros(P + 1, dtype=bool)   # edges shorter than flow's relative threshold
         self._lock_count = np.zeros(n, dtype=np.int64)    # degenerate triangles + short edges at each vertex
-        self._fstamp = np.zeros(t.n_faces, dtype=np.int64)
+        self._fstamp = np.zeros(t.n_faces, dtype=ix)
         self._tri_buf = None               # room for the moved triangles (the compiled update fills it)
         # mean edge length h (flow's "relative" thresholds), from the initial positions
         E_ = t.edges

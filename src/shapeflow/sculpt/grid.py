@@ -21,8 +21,12 @@ class CellGrid:
     """Uniform grid of cell size ``h`` over fixed positions (the spatial index of the compiled brush kernels,
     which query it: ``shapeflow.sculpt.compiled.CompiledGrid``).
 
-    Vertices are grouped by cell (sorted cell keys, CSR); a query visits the
-    cells that overlap the query sphere's bounding box.  Answers the same
+    Vertices are grouped by cell (sorted cell keys, CSR), their indexed
+    positions stored in that order; a query visits the cells that overlap the
+    query sphere's bounding box, reads those positions in one sweep and looks
+    up the current position of a vertex only when its indexed one lies
+    within the query radius R (a vertex within r that moved less than
+    R − r lies there).  Answers the same
     question as SciPy's k-d tree, the index used without the kernels
     (``cKDTree.query_ball_point`` plus the distance test), in ~0.07 ms
     instead of ~0.55 ms for a dab of 2,600 vertices, with preallocated
@@ -43,6 +47,7 @@ class CellGrid:
         key = (ijk[:, 0] * self.dims[1] + ijk[:, 1]) * self.dims[2] + ijk[:, 2]
         self.order = np.argsort(key, kind="stable")
         self.keys, first = np.unique(key[self.order], return_index=True)
+        self.points = np.ascontiguousarray(P[self.order])   # the indexed positions in cell order
         self.starts = np.append(first, n).astype(np.int64)
         self.out = np.empty(n, np.int64)      # a query's buffers: nothing mesh-sized per dab
         self.dist = np.empty(n)

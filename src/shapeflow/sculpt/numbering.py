@@ -8,7 +8,7 @@ import scipy.sparse as sp
 from ..linalg.ordering import row_ptr
 from ..mesh import Mesh
 
-__all__ = ["csr_ranges", "unique_stamp", "locality_order", "renumbered", "csr_by"]
+__all__ = ["csr_ranges", "unique_stamp", "locality_order", "renumbered", "csr_by", "index_dtype"]
 
 
 def csr_ranges(ptr: np.ndarray, rows: np.ndarray):
@@ -65,3 +65,9 @@ def renumbered(mesh: Mesh, perm: np.ndarray, inv: np.ndarray) -> Mesh:
 def csr_by(keys: np.ndarray, n: int):
     """Stable grouping of positions by key: (ptr (n+1), order)."""
     return row_ptr(keys, n), np.argsort(keys, kind="stable")
+
+
+def index_dtype(count: int):
+    """int32 when indices and offsets below ``count`` fit in it, else int64 (a brush's cached index
+    arrays: a dab reads a few thousand entries of each, and half the bytes is half the cache lines)."""
+    return np.int32 if count < np.iinfo(np.int32).max else np.int64
