@@ -268,6 +268,7 @@ async def _on_begin(hub: Hub, m: dict) -> list:
 
 async def _on_end(hub: Hub, m: dict) -> list:
     hub.close_stroke()
+    await _in_thread(hub.session.ready_brush)      # the next stroke starts at once
     return [hub.state()]
 
 

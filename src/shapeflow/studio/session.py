@@ -30,6 +30,7 @@ import numpy as np
 from .. import params
 from ..errors import ParameterError
 from ..mesh import Mesh
+from .blend import Sculptor
 from .history import History
 
 __all__ = ["StudioSession", "FamilyStatus", "smooth_falloff"]
@@ -91,8 +92,7 @@ class StudioSession:
         self._status = FamilyStatus()
         self._job = 0
         self._thread: threading.Thread | None = None
-        self._brush = None
-        self._brush_key = None
+        self._sculpt = Sculptor()         # the brushes, and the open stroke's blend
         self.version = 0      #: increases with every change of positions or weights
         self._shape_version = 0
         self._axes = None
@@ -164,10 +164,12 @@ class StudioSession:
         with self._lock:
             self._history.close(self._V, self._w)
             self._history.open(what, self._V.shape[0])
+            self._sculpt.end()
 
     def end_stroke(self) -> bool:
         """Close the open stroke (its edits become one undo step); False when none was open."""
         with self._lock:
+            self._sculpt.end()
             return self._history.close(self._V, self._w)
 
     @property
@@ -252,10 +254,7 @@ class StudioSession:
         positions the distances are measured on (default the current ones; the studio passes the
         shape its slider previews, which is what the pointer touched).  ``mirror``: the same dab
         across the plane of symmetry as well (:meth:`mirrored`)."""
-        c = self._point("center", center)
-        r = params.number("radius", radius)
-        if not r > 0:
-            raise ParameterError(f"radius must be > 0, got {radius!r}")
+        c, r = self._point("center", center), self._radius(radius)
         v = params.number("value", value)
         s = params.number("strength", strength)
         if not (0.0 <= v <= 1.0 and 0.0 <= s <= 1.0):
@@ -281,35 +280,45 @@ class StudioSession:
             strength: float = 0.05, mirror: bool = False) -> np.ndarray:
         """One dab of the enhancement brush (or, with ``inflate``, the inflate brush) at ``center``,
         the painted weights scaling it; returns the vertices moved (one undo step, or part of the open
-        stroke).  ``mirror``: the same dab across the plane of symmetry as well."""
-        from ..sculpt import Brush, InflateBrush
-
-        c = self._point("center", center)
+        stroke).  ``mirror``: the same dab across the plane of symmetry as well.  The enhancement
+        brush has the smooth falloff, and the dabs of one stroke (a mirrored dab's two included) do not
+        compound: each is solved on the shape the stroke began on and the stroke blends them
+        (:mod:`~shapeflow.studio.blend`)."""
+        c, r = self._point("center", center), self._radius(radius)
         with self._lock:
-            key = (self._shape_version, bool(inflate))
-            if self._brush is None or self._brush_key != key:
-                mesh = self._base.with_vertices(self._V.copy())
-                # undo_limit=0: the session keeps the history; the brush keeps none of its own
-                self._brush = (InflateBrush(mesh, radius=radius, strength=strength, weights=self._w.copy(),
-                                            undo_limit=0) if inflate else
-                               Brush(mesh, radius=radius, lam=lam, weights=self._w.copy(), undo_limit=0))
-            b = self._brush
-            b.set_weights(self._w.copy())     # painted since the brush was built: no rebuild for that
-            b.radius = radius
-            if inflate:
-                b.strength = strength
-            else:
-                b.lam = lam
+            sc = self._sculpt
+            centres = self._centres(c, r, mirror)
+            sc.brush_for(self._shaped, self._shape_version, self._V.shape[0], self._w.copy(), inflate=bool(inflate),
+                         blend=self._history.grouping or len(centres) > 1, radius=r, lam=lam, strength=strength)
             moved = []
-            centres = self._centres(c, float(radius), mirror)
             with self._grouped("dab", len(centres)):
                 for cc in centres:
-                    m = np.asarray(b.dab(cc), np.int64)
+                    m, new = sc.dab(cc)
                     if m.size:
-                        self._record("dab", m, np.array(b.vertices[m]), None)
+                        self._record("dab", m, new, None)
                         moved.append(m)
-            self._brush_key = (self._shape_version, bool(inflate))     # the brush holds exactly these positions
+            sc.settled(self._shape_version)
+            if not self._history.grouping:
+                sc.end()                     # a lone (mirrored) dab's blend ends with it
             return np.unique(np.concatenate(moved)) if moved else np.zeros(0, np.int64)
+
+    def ready_brush(self) -> None:
+        """Build the enhancement brush on the current shape now if the last stroke left it behind (the
+        studio does it when a stroke ends, so that the next one starts at once).  The build holds no
+        lock: the session answers meanwhile, and a brush the shape has outrun is not kept."""
+        with self._lock:
+            key, version = self._sculpt.key, self._shape_version
+            if key is None or key[1] or key[0] == version or self._history.grouping:
+                return
+            mesh, w = self._shaped(), self._w.copy()
+        brush = self._sculpt.build(mesh, w)
+        with self._lock:
+            if self._sculpt.key == key and self._shape_version == version and not self._history.grouping:
+                self._sculpt.brush, self._sculpt.key = brush, (version, False)
+
+    def _shaped(self) -> Mesh:
+        """The welded mesh at the current positions (what a brush is built on)."""
+        return self._base.with_vertices(self._V.copy())
 
     # --- symmetry ----------------------------------------------------------
     @property
@@ -361,13 +370,24 @@ class StudioSession:
         if not mirror:
             return [c]
         m = self.mirrored(c)
-        return [c] if np.linalg.norm(m - c) < 0.25 * r else [c, m]
+        with np.errstate(over="ignore"):          # a point far out: inf, two dabs (the far one moves nothing)
+            near = np.linalg.norm(m - c) < 0.25 * r
+        return [c] if near else [c, m]
+
+    @staticmethod
+    def _radius(radius) -> float:
+        r = params.number("radius", radius)
+        if not r > 0:
+            raise ParameterError(f"radius must be > 0, got {radius!r}")
+        return r
 
     @staticmethod
     def _point(name: str, x) -> np.ndarray:
         c = params.real_array(name, x)
         if c.shape != (3,):
             raise ParameterError(f"{name} must be 3 numbers, got shape {c.shape}")
+        if not np.isfinite(c).all():
+            raise ParameterError(f"{name} must be 3 finite numbers, got {c.tolist()!r}")
         return c
 
     @contextlib.contextmanager
