@@ -96,6 +96,7 @@ class StudioSession:
         self.version = 0      #: increases with every change of positions or weights
         self._shape_version = 0
         self._axes = None
+        self._front = None
 
     # --- state ---------------------------------------------------------
     @property
@@ -119,15 +120,17 @@ class StudioSession:
     @property
     def mesh(self) -> Mesh:
         """The current mesh on the input's own layout (a welded session's copies of a vertex all get
-        its position and weight), weights as its ``"weight"`` attribute, the input's attributes kept."""
+        its position and weight), weights as its ``"weight"`` attribute, the input's attributes kept,
+        and :attr:`front` as ``metadata["front"]``."""
         with self._lock:
             V, w = self._V.copy(), self._w.copy()
         if not self.welded:
-            return self._base.with_vertices(V).with_weights(w)
-        from ..geometry.weld import unweld
+            out = self._base.with_vertices(V).with_weights(w)
+        else:
+            from ..geometry.weld import unweld
 
-        wmap = self._base.weld_map
-        return unweld(self._base.with_vertices(V), self._input, self._base).with_weights(w[wmap])
+            out = unweld(self._base.with_vertices(V), self._input, self._base).with_weights(w[self._base.weld_map])
+        return out if self.front is None else out.with_metadata(front=self.front)
 
     @property
     def vertices(self) -> np.ndarray:
@@ -329,16 +332,28 @@ class StudioSession:
 
     @property
     def front(self) -> str | None:
-        """The axis the model faces as its ``metadata["front"]`` names it (the bundled Spot: ``-z``);
-        None when it names none (or one along the up axis): the view rule's default then."""
+        """The axis the model faces: the one set here, else the one its ``metadata["front"]`` names (the
+        bundled Spot: ``-z``); None when neither names one (or names one along the up axis): the view
+        rule's default then.  Setting it (None: back to the file's) turns the views and the mirror
+        plane, and :attr:`mesh` carries it in its metadata."""
         from ..rendering.style import frame
 
-        f = self._input.metadata.get("front")
+        f = self._front if self._front is not None else self._input.metadata.get("front")
         try:
             frame(self.up_axis, f)
         except ParameterError:
             return None
         return f
+
+    @front.setter
+    def front(self, axis) -> None:
+        from ..rendering.style import frame
+
+        if axis is not None:
+            frame(self.up_axis, axis)        # ParameterError: not an axis, or one along the up axis
+            axis = str(axis).strip().lower()
+        with self._lock:
+            self._front, self._axes = axis, None
 
     @property
     def axes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
