@@ -147,8 +147,8 @@ class _Routes:
                     await hub.broadcast(hub.state())
         return ws
 
-    async def download(self, request):
-        from ..io import save
+    def _format(self, request):
+        """The file name a download or losses request names, and its format (400: a bad name, no format)."""
         from ..io.registry import format_for
 
         web, name = self.web, request.match_info["name"]
@@ -156,9 +156,14 @@ class _Routes:
         if why:
             raise web.HTTPBadRequest(text=why)
         try:
-            format_for(name, None)
+            return name, format_for(name, None)
         except ShapeflowError as exc:
             raise web.HTTPBadRequest(text=str(exc)) from None
+
+    async def download(self, request):
+        from ..io import save
+
+        web, (name, _) = self.web, self._format(request)
         hub = self.hub
         async with hub.lock:
             hub.close_stroke()
@@ -182,16 +187,7 @@ class _Routes:
 
     async def losses(self, request):
         """``GET /losses/NAME.EXT``: what a download in that format would drop of the current mesh."""
-        from ..io.registry import format_for
-
-        web, name = self.web, request.match_info["name"]
-        why = check_name(name)
-        if why:
-            raise web.HTTPBadRequest(text=why)
-        try:
-            fmt = format_for(name, None)
-        except ShapeflowError as exc:
-            raise web.HTTPBadRequest(text=str(exc)) from None
+        web, (name, fmt) = self.web, self._format(request)
         mesh = self.hub.session.mesh
         try:
             lost = await _in_thread(lambda: _data_losses(lambda: fmt.writer(io.BytesIO(), mesh, binary=None)))

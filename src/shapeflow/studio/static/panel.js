@@ -6,21 +6,17 @@ import * as tools from "./tools.js";
 import * as view from "./view.js";
 
 // --- status and errors ---------------------------------------------------------------
-export function showError(text) {
-  studio.error = text;
-  $("error").firstElementChild.textContent = text;
-  $("error").classList.add("shown");
+// a notice across the top of the view (× dismisses it): [show(text), clear()], its text as studio[id]
+function banner(id) {
+  const show = (text) => { studio[id] = text; $(id).firstElementChild.textContent = text; $(id).classList.add("shown"); };
+  const clear = () => { studio[id] = null; $(id).classList.remove("shown"); };
+  $(`${id}-close`).onclick = clear;
+  return [show, clear];
 }
-export function clearError() { studio.error = null; $("error").classList.remove("shown"); }
-$("error-close").onclick = clearError;
-// information, not a failure (a λ outside the family, what a download's format dropped): the blue banner
-export function showInfo(text) {
-  studio.info = text;
-  $("info").firstElementChild.textContent = text;
-  $("info").classList.add("shown");
-}
-export function clearInfo() { studio.info = null; $("info").classList.remove("shown"); }
-$("info-close").onclick = clearInfo;
+// an error: the red banner; information, not a failure (a λ outside the family, what a download's
+// format dropped): the blue one
+export const [showError, clearError] = banner("error");
+export const [showInfo, clearInfo] = banner("info");
 
 let last = null;                      // the last state message
 function showStatus() {
