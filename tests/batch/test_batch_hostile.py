@@ -270,7 +270,8 @@ def test_rerun_notices_and_force(data, tmp_path):
     n = len(list((root / "a").iterdir()))
     runs = [(["--quiet"], OP, []),
             ([], ["enhance", "--strength", "10"],
-             [f"parameters changed since the last run: {n} files done before will be done again"]),
+             [f"parameters (or a file they name) changed since the last run: {n} files done before will be done "
+              "again"]),
             (["--force"], ["enhance", "--strength", "10"], [f"--force: {n} files done before will be done again"]),
             ([], ["enhance", "--strength", "10"], [f"{n} files, {n} done before, 0 to do on no workers"])]
     for opts, op, expected in runs:

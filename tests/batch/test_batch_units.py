@@ -206,3 +206,22 @@ def test_worker_progress_bars_stay_off_and_messages_name_the_output(tree, tmp_pa
     rec = process_file(str(tree / "a" / "x.obj"), str(tmp_path / "dir.obj"), "smooth -s 1")
     assert rec["status"] == "failed" and str(tmp_path / "dir.obj") in rec["error"], rec
     assert ".shapeflow-batch-" not in rec["error"] + "".join(rec["messages"])
+
+
+def test_the_digest_follows_the_contents_of_the_files_the_steps_read(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    n = sf.load_example("spot").n_vertices
+    Path("w.txt").write_text("0.5\n" * n)
+    Path("edges.txt").write_text("0 1\n")
+    ops = ["smooth -s 2 --weights w.txt", "smooth -s 2 --weights=w.txt", "enhance -s 5 --sharp-edges edges.txt"]
+    before = [parse_operation(o).digest(None) for o in ops]
+    assert before == [parse_operation(o).digest(None) for o in ops]        # same files, same digest
+    Path("w.txt").write_text("0.25\n" * n)
+    Path("edges.txt").write_text("1 2\n")
+    after = [parse_operation(o).digest(None) for o in ops]
+    assert all(a != b for a, b in zip(before, after))
+    # an attribute name is no file: the digest is the steps' alone
+    assert parse_operation("smooth -s 2 --weights weight").read_files() == {}
+    import hashlib
+
+    assert parse_operation(ops[0]).read_files() == {"w.txt": hashlib.sha256(Path("w.txt").read_bytes()).hexdigest()}

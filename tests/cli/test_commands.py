@@ -83,3 +83,17 @@ def test_a_silent_run_and_a_wrong_options_object(tmp_path):
     assert sf.load(tmp_path / "s.obj").n_vertices == sf.subdivide(cage, 1).n_vertices
     with pytest.raises(ParameterError, match="options must be those of an operation"):
         commands.run(object(), "example:spot", str(tmp_path / "x.ply"))
+
+
+@pytest.mark.parametrize("scale", [1e-200, 1e200])
+@pytest.mark.parametrize("command, strength", [("smooth", 1e6), ("enhance", 1e6)])
+def test_the_strong_lambda_warnings_hold_at_any_scale(tmp_path, scale, command, strength):
+    """The same words and figures as at the model's own scale (the squares of 1e200 overflowed)."""
+    spot = sf.load_example("spot")
+    sf.save(tmp_path / "big.ply", spot.with_vertices(spot.vertices * scale))
+    told = []
+    for src in ("example:spot", str(tmp_path / "big.ply")):
+        said = Kinds()
+        commands.run(FlowOptions(command=command, strength=strength), src, str(tmp_path / f"o{len(told)}.ply"), said)
+        told.append([text.split(": ", 1)[1] for kind, text in said.said if kind == "warning"])
+    assert told[0] and told[0] == told[1]

@@ -7,6 +7,7 @@ import pytest
 from conftest import MESHES, requires_shared
 
 import shapeflow as sf
+from shapeflow.geometry.weld import WELD_TOL, weld_map
 from shapeflow.mesh.attributes import Indexed
 
 
@@ -128,3 +129,80 @@ def test_the_brush_on_a_soup_counts_the_files_vertices(tmp_path, capsys):
     assert said == moved.size > 0
     w = sf.weld(soup)          # every copy of a moved vertex moved
     assert set(moved.tolist()) == set(np.flatnonzero(np.isin(w.weld_map, w.weld_map[moved])).tolist())
+
+
+# --- any finite scale: the neighbour search runs on an exact power-of-two copy ------------------
+
+def _jittered_soup(seed=0):
+    """A closed quad sphere as a soup whose copies of a vertex are moved apart by up to 1e-9 of the
+    diagonal (welded at the default 1e-7), and the map that construction implies: each soup vertex
+    is its sphere vertex, numbered by first appearance."""
+    from meshgen import cube_sphere
+
+    m = cube_sphere(4)
+    soup = soup_of(m)
+    rng = np.random.default_rng(seed)
+    V = soup.vertices + rng.uniform(-1e-9, 1e-9, soup.vertices.shape) * m.diagonal / np.sqrt(3)
+    src = m.face_indices
+    first = {}
+    expected = np.array([first.setdefault(int(v), len(first)) for v in src])
+    return V, expected
+
+
+@pytest.mark.parametrize("scale", [1e-300, 1e-200, 1e-150, 1e-20, 1.0, 1e20, 1e155, 1e200, 1e300,
+                                   np.ldexp(1.0, -1020), np.ldexp(1.0, 1000)])
+def test_weld_map_is_the_same_at_every_scale(scale):
+    V, expected = _jittered_soup()
+    assert np.array_equal(weld_map(V, WELD_TOL), expected)
+    got = weld_map(V * scale, WELD_TOL)
+    assert np.array_equal(got, expected)
+    w = sf.weld(sf.Mesh.from_csr(V * scale, np.full(V.shape[0] // 4, 4), np.arange(V.shape[0])))
+    assert np.array_equal(w.weld_map, expected) and w.n_vertices == expected.max() + 1
+
+
+def test_weld_near_its_threshold_is_exact_at_power_of_two_scales():
+    """Pairs placed from 0.5 to 2 times the welding distance: some weld, some do not, and scaling
+    by 2^k (exact in binary floating point) gives the very same map."""
+    rng = np.random.default_rng(3)
+    base = rng.uniform(0, 1, (200, 3))
+    base[0], base[1] = 0.0, 1.0                      # the box is the unit cube: diagonal sqrt(3)
+    d = rng.normal(size=(200, 3))
+    d *= (rng.uniform(0.5, 2.0, 200) * WELD_TOL * np.sqrt(3) / np.linalg.norm(d, axis=1))[:, None]
+    d[:2] = 0.0
+    V = np.concatenate([base, base + d])
+    ref = weld_map(V, WELD_TOL)
+    welded = ref[200:] == ref[:200]
+    assert 20 < welded.sum() < 180                  # both sides of the threshold are exercised
+    for k in (-1000, -500, -100, 100, 500, 1020):     # every coordinate stays a normal number
+        assert np.array_equal(weld_map(np.ldexp(V, k), WELD_TOL), ref), k
+
+
+def test_weld_of_coordinates_spanning_the_whole_double_range():
+    """±1e308: the bounding-box diagonal itself overflows (inf), the weld is still the shape's."""
+    big = np.finfo(float).max / 2
+    V = np.array([[-1, -1, -1], [1, -1, -1], [-1, 1, -1], [-1, -1, 1], [1, -1, -1], [-1, 1, -1.0]]) * big
+    m = sf.Mesh(V, [[0, 2, 1], [0, 1, 3], [4, 5, 3]])
+    assert m.diagonal == np.inf
+    w = sf.weld(m)
+    assert w.weld_map.tolist() == [0, 1, 2, 3, 1, 2] and w.faces_as_lists() == [[0, 2, 1], [0, 1, 3], [1, 2, 3]]
+    with pytest.raises(sf.ParameterError, match="vertex 1 has a non-finite coordinate"):
+        weld_map(np.array([[0, 0, 0], [np.inf, 0, 0.0]]), 1e-7)
+
+
+def test_a_million_copies_of_a_point_weld_in_one_sort():
+    """Coinciding vertices are merged before the neighbour search: 10⁶ copies of three points would
+    be 1.5·10¹¹ pairs for the tree (memory no machine has), here they are three positions."""
+    V = np.repeat(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]]), 1_000_000 // 3 + 1, axis=0)
+    wm = weld_map(V, WELD_TOL)
+    k = 1_000_000 // 3 + 1
+    assert np.array_equal(wm, np.repeat([0, 1, 2], k))
+
+
+def test_a_dense_cluster_of_distinct_positions_is_refused_by_name():
+    """50,000 distinct positions within 1e-9 of the diagonal of each other: 1.25·10⁹ pairs within the
+    welding distance.  Refused from a grid count before the search, not after it."""
+    rng = np.random.default_rng(5)
+    V = np.concatenate([rng.uniform(0, 1e-9, (50_000, 3)), [[1.0, 1.0, 1.0]]])
+    with pytest.raises(sf.MeshError, match=r"50,001 distinct vertex positions lie in clusters closer than the "
+                                           r"welding distance \(1e-07 × the bounding-box diagonal\)"):
+        weld_map(V, WELD_TOL)

@@ -230,15 +230,66 @@ def test_a_large_negative_stride_is_refused_in_a_child_that_does_not_crash():
     assert "MeshError: stride.gltf: bufferView 0: byteStride -1099511627776" in out.stdout
 
 
-def test_an_accessor_without_buffer_view_is_bounded_by_memory():
+ZERO_RULE = r"exceed the {limit} a file may declare without bytes behind them \(max\(65,536, 16 × the {nbytes} bytes"
+
+
+def test_accessors_without_buffer_view_are_bounded_by_the_files_bytes(tmp_path):
+    """Zeros need no bytes: a file may declare max(65,536, 16 × its bytes and its buffers') of them."""
     d = cube_doc()
     d.j["accessors"][0].pop("bufferView")
-    d.j["accessors"][0]["count"] = 10 ** 13
-    refused(d.gltf(), r"accessor 0 \(POSITION: 10000000000000 VEC3 without a bufferView\) needs about .* of memory")
-    d.j["accessors"][0]["count"] = 10 ** 400
-    refused(d.gltf(), r"accessor 0 \(POSITION: 1000.* VEC3 without a bufferView\) needs about .* of memory")
-    d.j["accessors"][0]["count"] = 8                             # small: zeros, as the spec says
-    np.testing.assert_array_equal(read_gltf(d.gltf(), "z.gltf").vertices, np.zeros((8, 3)))
+    for count in (10 ** 13, 10 ** 400, 65_537):
+        d.j["accessors"][0]["count"] = count
+        data = d.gltf()
+        msg = refused(data, ZERO_RULE.format(limit="65,536", nbytes=f"{len(data):,}"))
+        assert f"its {count:,} elements (zeros)" in msg
+    d.j["accessors"][0]["count"] = 65_536                        # at the floor: zeros, as the spec says
+    m = read_gltf(d.gltf(), "z.gltf")
+    assert m.n_vertices == 65_536 and not m.vertices.any()
+    # a buffer file of 8,192 bytes beside it raises the limit to 16 × (its bytes + the file's)
+    d.j["accessors"].append({"componentType": 5126, "type": "VEC3", "count": 75_000})
+    d.j["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = 2
+    d.j["accessors"][0]["count"] = d.j["accessors"][2]["count"] = 75_000
+    (tmp_path / "pad.bin").write_bytes(b"\0" * 8_192)
+    d.j["buffers"].append({"byteLength": 8_192})
+    d.blobs.append(bytearray(8_192))
+    path = tmp_path / "z.gltf"
+    path.write_bytes(d.gltf({1: "pad.bin"}))
+    limit = 16 * (os.path.getsize(path) + 8_192)
+    assert 75_000 < limit < 150_000                              # one accessor fits, both do not
+    with pytest.raises(sf.MeshError, match=ZERO_RULE.format(limit=f"{limit:,}",
+                                                            nbytes=f"{os.path.getsize(path) + 8_192:,}")) as info:
+        sf.load(path)
+    assert "accessor 2 (NORMAL: VEC3) has no bufferView: its 75,000 elements (zeros) and the 75,000 of earlier" \
+        in str(info.value)
+    d.j["meshes"][0]["primitives"][0]["attributes"]["NORMAL"] = 0    # one accessor in two roles: counted once
+    path.write_bytes(d.gltf({1: "pad.bin"}))
+    assert sf.load(path).n_vertices == 75_000
+
+
+def test_zeros_under_sparse_values_count_against_the_same_limit():
+    d = sparse_doc(with_base=False)
+    d.j["accessors"][0]["count"] = 65_537
+    data = d.gltf()
+    refused(data, ZERO_RULE.format(limit="65,536", nbytes=f"{len(data):,}"))
+
+
+def test_the_cli_reads_the_most_zeros_a_small_file_may_hold_in_one_pass(tmp_path):
+    """65,536 coinciding zeros: welded by one sort, not compared pair by pair (2·10⁹ pairs); a hang
+    detector, not a clock, bounds the run."""
+    d = cube_doc()
+    d.j["accessors"][0].pop("bufferView")
+    d.j["accessors"][0]["count"] = 65_536
+    (tmp_path / "zeros.glb").write_bytes(d.glb())
+    d.j["accessors"][0]["count"] = 65_537
+    (tmp_path / "more.glb").write_bytes(d.glb())
+    env = dict(os.environ, PYTHONPATH=os.path.join(os.path.dirname(__file__), "..", "..", "src"))
+    run = [sys.executable, "-m", "shapeflow", "info"]
+    out = subprocess.run(run + ["zeros.glb"], capture_output=True, text=True, cwd=tmp_path, env=env, timeout=300)
+    assert out.returncode == 0 and out.stderr == "", out.stderr
+    assert "vertices        65536" in out.stdout and "65535 vertices share a position" in out.stdout
+    out = subprocess.run(run + ["more.glb"], capture_output=True, text=True, cwd=tmp_path, env=env, timeout=300)
+    assert out.returncode == 2 and out.stderr.count("\n") == 1
+    assert "more.glb: accessor 0 (POSITION: VEC3) has no bufferView: its 65,537 elements (zeros)" in out.stderr
 
 
 def sparse_doc(with_base: bool, indices=(1, 6), values=((5.0, 6.0, 7.0), (-1.0, -2.0, -3.0))) -> Doc:

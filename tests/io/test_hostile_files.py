@@ -119,6 +119,55 @@ def test_ply_ambiguity_is_an_error(tmp_path, header, body, match):
         sio.load(p)
 
 
+MANY_PROPERTIES = textwrap.dedent("""
+    import sys
+    import shapeflow.io as sio
+    from shapeflow.errors import MeshError
+    m = sio.load(sys.argv[1])
+    print(m.n_vertices, m.n_faces, len(m.attributes), m.attributes["p0"].tolist(), m.attributes["p199999"].tolist())
+    try:
+        sio.load(sys.argv[2])
+    except MeshError as exc:
+        print(exc)
+""")
+
+
+def test_a_ply_header_of_200000_properties_is_read_in_one_pass(tmp_path):
+    """Duplicate names are looked up in a set: 200,000 property lines, which took more than 16 minutes
+    when each was compared with the ones before it.  A hang detector (the subprocess's timeout), not a
+    clock, bounds the run."""
+    n = 200_000
+    props = "".join(f"property uchar p{i}\n" for i in range(n))
+    head = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+            + props + "{}element face 1\nproperty list uchar int vertex_indices\nend_header\n")
+    rows = [f"{v} " + " ".join(str((i + k) % 256) for i in range(n)) for k, v in enumerate(("0 0 0", "1 0 0", "0 1 0"))]
+    body = "\n".join(rows) + "\n3 0 1 2\n"
+    (tmp_path / "many.ply").write_text(head.format("") + body)
+    (tmp_path / "twice.ply").write_text(head.format("property uchar p0\n") + body)
+    script = tmp_path / "run.py"
+    script.write_text(MANY_PROPERTIES)
+    out = subprocess.run([sys.executable, str(script), str(tmp_path / "many.ply"), str(tmp_path / "twice.ply")],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    assert lines[0] == f"3 1 {n} [0, 1, 2] [{(n - 1) % 256}, {n % 256}, {(n + 1) % 256}]"
+    assert lines[1].endswith(f"line {n + 7}: property 'p0' of element 'vertex' is declared twice; "
+                             "which one holds the values is ambiguous")
+
+
+def test_a_ply_header_is_at_most_16_mib(tmp_path):
+    comments = b"comment " + b"x" * 1000 + b"\n"
+    filler = comments * (17 * 1024)                       # 17 MiB of comment lines
+    for tail in (b"", b"element vertex 0\nproperty float x\nproperty float y\nproperty float z\nend_header\n"):
+        p = tmp_path / "long.ply"
+        p.write_bytes(b"ply\nformat ascii 1.0\n" + filler + tail)
+        with pytest.raises(MeshError, match=r"long.ply: no 'end_header' line in the first 16 MiB: a PLY header is "
+                                            r"at most 16 MiB \(about 700,000 property lines\)"):
+            sio.load(p)
+    p.write_bytes(b"ply\nformat ascii 1.0\n" + comments * (15 * 1024) + tail)     # 15 MiB: read
+    assert sio.load(p).n_vertices == 0
+
+
 # --- valid files that used to be refused -----------------------------------------------------------
 
 @pytest.mark.parametrize("bom", [b"", b"\xef\xbb\xbf"], ids=["no-bom", "bom"])

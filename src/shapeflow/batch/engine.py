@@ -241,7 +241,7 @@ def _split_done(jobs, latest: dict, digest: str, force: bool, notice, *, first: 
     if forced:
         notice(f"--force: {_n(forced)} will be done again")
     if changed:
-        notice(f"parameters changed since the last run: {_n(changed)} will be done again")
+        notice(f"parameters (or a file they name) changed since the last run: {_n(changed)} will be done again")
     if other:
         notice(f"{_n(other)} will be done again: input changed or output missing")
     return todo, skipped

@@ -29,6 +29,8 @@ LAST_ONLY = ("family", "render", "curvature")
 #: options that write one more file per run: one path for every file of a batch would collide
 SIDE_OUTPUTS = (("image", "--image"), ("weights_out", "--weights-out"))
 THEN = "--then"
+#: options whose value is a file the steps read: its contents decide the output as much as the option
+FILE_OPTIONS = ("--weights", "--sharp-edges", "--creases", "--stroke")
 
 
 @dataclass(frozen=True)
@@ -58,9 +60,29 @@ class Operation:
         return {"render": ".png", "curvature": ".npy"}.get(self.last, input_suffix.lower())
 
     def digest(self, fmt: str | None) -> str:
-        """Hash of everything that decides a file's output: the steps and the output format."""
-        blob = json.dumps({"steps": self.steps, "format": fmt}, sort_keys=True).encode()
+        """Hash of everything that decides a file's output: the steps, the output format and the
+        contents of the files the steps read (``--weights``, ``--sharp-edges``, ``--creases``,
+        ``--stroke``): a rerun after such a file changed redoes every output."""
+        blob = json.dumps({"steps": self.steps, "format": fmt, "files": self.read_files()}, sort_keys=True).encode()
         return hashlib.sha256(blob).hexdigest()[:16]
+
+    def read_files(self) -> dict[str, str]:
+        """SHA-256 of each file an option of the steps names (a ``--weights`` attribute name, which
+        is no file, is left out)."""
+        out = {}
+        for step in self.steps:
+            for i, tok in enumerate(step):
+                name, eq, value = tok.partition("=")
+                if name not in FILE_OPTIONS:
+                    continue
+                value = value if eq else (step[i + 1] if i + 1 < len(step) else "")
+                if value and os.path.isfile(value):
+                    h = hashlib.sha256()
+                    with open(value, "rb") as f:
+                        for block in iter(lambda: f.read(1 << 20), b""):
+                            h.update(block)
+                    out[value] = h.hexdigest()
+        return out
 
 
 def _split(tokens: list[str]) -> list[list[str]]:

@@ -171,14 +171,20 @@ def warn_degenerate_result(report: Reporter, command: str, lam: float, before, a
     collapsed the model towards a point, or enhancement that only rescaled it."""
     import numpy as np
 
-    V, X = before.vertices, after.vertices
+    if before.n_vertices < 4 or abs(lam) < STRONG_LAMBDA:
+        return
+    # in units of the input's largest coordinate: the sums of squares below stay finite at any scale
+    unit = float(np.abs(before.vertices).max()) if before.n_vertices else 0.0
+    unit = unit if np.isfinite(unit) and unit > 0 else 1.0
+    V, X = before.vertices / unit, after.vertices / unit
     moved = float(np.linalg.norm(X - V))
-    if moved == 0.0 or V.shape[0] < 4 or abs(lam) < STRONG_LAMBDA:
+    if moved == 0.0 or not np.isfinite(moved):
         return
     c = V.mean(axis=0)
-    if lam > 0 and after.diagonal < 0.05 * before.diagonal:
+    size_before, size_after = (float(np.linalg.norm(np.ptp(A, axis=0))) for A in (V, X))
+    if lam > 0 and size_after < 0.05 * size_before:
         report.warning(f"shapeflow {command}: warning: λ={lam:g} collapsed the model to "
-                       f"{after.diagonal / before.diagonal:.1%} of its size (the limit of strong smoothing is the "
+                       f"{size_after / size_before:.1%} of its size (the limit of strong smoothing is the "
                        "mean position); try a smaller λ")
         return
     D = V - c
@@ -190,7 +196,7 @@ def warn_degenerate_result(report: Reporter, command: str, lam: float, before, a
 
 
 def note_compiling(report: Reporter, consumers: tuple, size: int, *, min_size: int | None = None,
-                   quiet: bool = False) -> bool:
+                   quiet: bool = False, command: str = "") -> bool:
     """Say once that the compiled kernels are being compiled (the first run on this machine takes
     tens of seconds; later runs load them from numba's cache).  Returns whether it said so."""
     from pathlib import Path
@@ -208,6 +214,6 @@ def note_compiling(report: Reporter, consumers: tuple, size: int, *, min_size: i
         if not any(cache.glob("compiled.*.nbi")):
             missing.append(name)
     if missing:
-        report.message("shapeflow: compiling the fast kernels (first run on this machine only; later runs load "
-                       "them from numba's cache)")
+        report.message(f"shapeflow{' ' + command if command else ''}: compiling the fast kernels (first run on this "
+                       "machine only; later runs load them from numba's cache)")
     return bool(missing)

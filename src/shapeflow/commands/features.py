@@ -9,8 +9,8 @@ and the creases a subdivision writes back.
   ``--creases``; ``#`` starts a comment) or a ``.npy`` array of as many columns, 0-based vertex
   numbers, read when the options are made; :meth:`EdgeFile.pairs_on` checks them against a mesh.
   Every message names the option, the file and its line (``.npy``: its row).
-* :func:`marked_edges` — the edges an OBJ file marks sharp (smoothing-group borders, ``t crease``
-  tags with a positive sharpness), counted by source.
+* :func:`marked_edges` — the edges a file marks sharp (smoothing-group borders, ``t crease``
+  tags with a positive sharpness, split normals), counted by source.
 * :func:`with_crease_tags` — a subdivision's ``creases`` as ``t crease`` lines of its OBJ output.
 
 The marked edges are not kept by default: an OBJ exported with smoothing off on every face
@@ -30,7 +30,7 @@ from ..errors import DataLossWarning, ParameterError
 from .report import Reporter
 
 __all__ = ["FeatureSettings", "EdgeFile", "Marks", "read_edge_file", "add_feature_options", "marked_edges",
-           "feature_kwargs", "drawn_edges", "crease_tags", "with_crease_tags"]
+           "feature_kwargs", "drawn_edges", "with_crease_tags"]
 
 _SPACE = np.frombuffer(b" \t\r\n\x0b\x0c", np.uint8)
 
@@ -190,17 +190,24 @@ class Marks:
     sharp: np.ndarray
     groups: int             #: smoothing-group borders
     tags: int               #: edges of 't crease' tags with a positive sharpness
+    normals: int = 0        #: edges where the split normals break (edges of the welded mesh)
+    copies: int = 0         #: marked edges of the input that are a second copy of a welded edge
 
     @property
     def count(self) -> int:
-        return int(self.sharp.sum())
+        """Distinct marked edges (a seam's two copies of one edge count once)."""
+        return int(self.sharp.sum()) - self.copies
 
     def sources(self) -> str:
-        """Where the marks come from: ``smoothing-group borders``, ``'t crease' tags``, or both with
-        their counts (``16 smoothing-group borders, 8 in 't crease' tags``)."""
-        if not (self.groups and self.tags):
-            return "smoothing-group borders" if self.groups else "'t crease' tags"
-        return f"{self.groups} smoothing-group borders, {self.tags} in 't crease' tags"
+        """Where the marks come from: ``smoothing-group borders``, ``'t crease' tags``, ``split normals``,
+        or several with their counts (``16 smoothing-group borders, 8 in 't crease' tags``)."""
+        named = [(self.groups, "smoothing-group borders"), (self.tags, "in 't crease' tags"),
+                 (self.normals, "where split normals break")]
+        named = [(n, what) for n, what in named if n]
+        if len(named) == 1:
+            return {"in 't crease' tags": "'t crease' tags", "where split normals break": "split normals"}.get(
+                named[0][1], named[0][1])
+        return ", ".join(f"{n} {what}" for n, what in named)
 
 
 def file_crease_tags(mesh, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -217,15 +224,49 @@ def file_crease_tags(mesh, name: str) -> tuple[np.ndarray, np.ndarray]:
         raise ParameterError(f"{name}: 't crease' tags: {text}") from None
 
 
+def split_normal_marks(mesh) -> tuple[np.ndarray, int]:
+    """(E,) the edges of ``mesh`` where its split normals break, found on the welded mesh (a glTF, PLY
+    or USD file splits a vertex where its normals differ, so only the weld makes such an edge
+    shared by two faces; each of the input's copies of a welded edge is marked), and how many
+    distinct edges of the welded mesh that is."""
+    from ..geometry.features import split_normal_edges
+    from ..geometry.weld import weld_if_split
+
+    if "normal" not in mesh.corner_attributes:
+        return np.zeros(mesh.topology.n_edges, bool), 0
+    welded = weld_if_split(mesh)
+    if welded is mesh:
+        sharp = split_normal_edges(mesh)
+        return sharp, int(sharp.sum())
+    sharp = split_normal_edges(welded)
+    e = welded.weld_map[mesh.topology.edges]
+    keep = e[:, 0] != e[:, 1]
+    lo, hi = np.minimum(e[:, 0], e[:, 1]), np.maximum(e[:, 0], e[:, 1])
+    we = welded.topology.edges
+    n = np.int64(max(welded.n_vertices, 1))
+    wkey = we[:, 0].astype(np.int64) * n + we[:, 1]
+    order = np.argsort(wkey)
+    key = lo.astype(np.int64) * n + hi
+    pos = np.minimum(np.searchsorted(wkey[order], key), max(wkey.size - 1, 0))
+    found = keep & (wkey[order][pos] == key) if wkey.size else np.zeros(key.size, bool)
+    out = np.zeros(mesh.topology.n_edges, bool)
+    out[found] = sharp[order[pos[found]]]
+    return out, int(sharp.sum())
+
+
 def marked_edges(mesh, name: str) -> Marks:
-    """The edges the file ``name`` marks sharp (borders of OBJ smoothing groups, creased edges)."""
+    """The edges the file ``name`` marks sharp (borders of OBJ smoothing groups, creased edges, and
+    where its split normals break)."""
     from ..geometry.features import edge_ids, smoothing_group_edges
 
     groups = smoothing_group_edges(mesh)
     pairs, s = file_crease_tags(mesh, name)
     tagged = np.zeros_like(groups)
     tagged[edge_ids(mesh, pairs[s > 0], f"{name}: 't crease' tags")] = True
-    return Marks(groups | tagged, int(groups.sum()), int(tagged.sum()))
+    normals, distinct = split_normal_marks(mesh)
+    sharp = groups | tagged | normals
+    copies = int((normals & ~(groups | tagged)).sum()) - distinct if distinct else 0
+    return Marks(sharp, int(groups.sum()), int(tagged.sum()), distinct, max(copies, 0))
 
 
 # -- the flow's options -----------------------------------------------------------------------------
@@ -261,7 +302,8 @@ def add_feature_options(p) -> None:
     g.add_argument("--sharp-edges", metavar="FILE",
                    help="keep these edges sharp: a .txt of 'i j' lines or a .npy (k, 2) of 0-based vertex numbers")
     g.add_argument("--keep-marked-edges", action="store_true",
-                   help="keep the edges the input marks sharp (OBJ smoothing-group borders, 't crease' tags); "
+                   help="keep the edges the input marks sharp (OBJ smoothing-group borders, 't crease' tags, "
+                        "split normals); "
                         "not by default")
 
 
@@ -275,7 +317,7 @@ def feature_kwargs(o: FeatureSettings, mesh, source: str, command: str, report: 
         marks = marked_edges(mesh, source)
         if marks.count == 0:
             report.warning(f"shapeflow {command}: warning: --keep-marked-edges: {source} marks no sharp edge "
-                           "(no smoothing-group border, no 't crease' tag)")
+                           "(no smoothing-group border, no 't crease' tag, no split normal)")
         elif marks.count >= int((mesh.topology.edge_face_count >= 2).sum()):
             report.warning(f"shapeflow {command}: warning: --keep-marked-edges: {source} marks every edge sharp "
                            f"({marks.sources()}): no vertex off the boundary can move")
@@ -307,35 +349,18 @@ def drawn_edges(mesh, kw: dict) -> np.ndarray | None:
 
 # -- creases written back ---------------------------------------------------------------------------
 
-def crease_tags(creases) -> list[tuple[str, str]]:
-    """``result.creases`` (pairs, Blender's values c) as OBJ ``t crease 2/1 i j s`` lines: one per edge
-    with a positive sharpness s = 10·c² (10: infinitely sharp), 0-based as OpenSubdiv reads them."""
-    pairs, c = (np.asarray(x) for x in creases)
-    s = np.minimum(10.0 * np.square(c.astype(np.float64)), 10.0)
-    keep = s > 0
-    if not keep.any():
-        return []
-    p = pairs[keep].astype(np.int64)
-    rest = np.char.add(np.char.add(np.char.add("crease 2/1 ", p[:, 0].astype(str)), " "), p[:, 1].astype(str))
-    rest = np.char.add(np.char.add(rest, " "), np.char.mod("%.17g", s[keep]))
-    return [("t", r) for r in rest.tolist()]
-
-
-def _is_crease_tag(element) -> bool:
-    tag, rest = element
-    return tag == "t" and rest.split()[:1] == ["crease"]
-
-
 def with_crease_tags(out, levels_changed_numbering: bool):
     """``out`` (a subdivision result) whose OBJ output carries its ``creases`` as ``t crease`` lines in
     place of the input's; the input's other ``l``/``p``/``t`` lines are kept while the numbering
     holds, and named in a DataLossWarning otherwise."""
     meta = dict(out.metadata.get("obj") or {})
     elements = list(meta.get("elements") or ())
+    from ..io.obj import crease_tags, is_crease_tag
+
     tags = crease_tags(out.creases) if getattr(out, "creases", None) is not None else []
-    if not tags and not any(map(_is_crease_tag, elements)):
+    if not tags and not any(map(is_crease_tag, elements)):
         return out
-    others = [e for e in elements if not _is_crease_tag(e)]
+    others = [e for e in elements if not is_crease_tag(e)]
     if others and levels_changed_numbering:
         warnings.warn(DataLossWarning(f"{len(others)} 'l'/'p'/'t' lines refer to the input's vertex numbering, "
                                       "which subdivision changed: not written"), stacklevel=2)

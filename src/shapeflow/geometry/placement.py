@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["place", "unplace", "place_normals", "unplace_normals"]
+__all__ = ["place", "unplace", "place_normals", "unplace_normals", "orientation"]
 
 
 def place(points: np.ndarray, M: np.ndarray) -> np.ndarray:
@@ -19,6 +19,18 @@ def place(points: np.ndarray, M: np.ndarray) -> np.ndarray:
 def unplace(points: np.ndarray, M: np.ndarray) -> np.ndarray:
     """The inverse of :func:`place`: A⁻¹ (p − t)."""
     return (points - M[:3, 3]) @ np.linalg.inv(M[:3, :3]).T
+
+
+def orientation(M: np.ndarray) -> int:
+    """The sign of the determinant of M's linear part (-1 mirrors, +1 keeps, 0: singular or not
+    finite), taken on a copy scaled by a power of two to a largest entry in [0.5, 1): a scale of
+    1e300 or 1e-110 per axis neither overflows nor underflows to a wrong answer."""
+    A = np.asarray(M, dtype=np.float64)[:3, :3]
+    s = float(np.abs(A).max())
+    if not np.isfinite(A).all() or s == 0.0:
+        return 0
+    d = float(np.linalg.det(np.ldexp(A, -int(np.frexp(s)[1]))))
+    return 0 if abs(d) < 1e-300 else (1 if d > 0 else -1)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:

@@ -2,15 +2,21 @@
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import errno
 import os
 import stat
 import tempfile
-from typing import BinaryIO, Callable
+from typing import BinaryIO, Callable, Iterator
 
 from ..errors import MeshError, OutputError, ParameterError
 
-__all__ = ["as_path", "os_error", "read_bytes", "umask", "bundled_data_dir", "output_target", "atomic_write"]
+__all__ = ["as_path", "os_error", "read_bytes", "umask", "bundled_data_dir", "output_target", "atomic_write",
+           "side_file", "writing_in"]
+
+#: the folder of the file :func:`atomic_write` is writing (for writers that need a path of their own)
+_WRITING_IN: contextvars.ContextVar[str | None] = contextvars.ContextVar("shapeflow_writing_in", default=None)
 
 
 def as_path(path, what: str = "path") -> str:
@@ -116,7 +122,11 @@ def atomic_write(name: str, write: Callable[[BinaryIO], None], *, force: bool = 
         if fd is None:
             fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(target) + ".", suffix=".tmp", dir=directory)
         with os.fdopen(fd, "wb") as f:
-            write(f)
+            token = _WRITING_IN.set(directory)
+            try:
+                write(f)
+            finally:
+                _WRITING_IN.reset(token)
             f.flush()
             os.fchmod(f.fileno(), mode)
             os.fsync(f.fileno())
@@ -142,6 +152,25 @@ def atomic_write(name: str, write: Callable[[BinaryIO], None], *, force: bool = 
         pass
     finally:
         os.close(dfd)
+
+
+def writing_in() -> str | None:
+    """The folder of the file :func:`atomic_write` is writing now (None outside it)."""
+    return _WRITING_IN.get()
+
+
+@contextlib.contextmanager
+def side_file(suffix: str) -> Iterator[str]:
+    """A path for a library that writes only to paths (pxr's crate files): a new hidden file in the
+    folder of the file :func:`atomic_write` is writing (never the system's temporary folder, which
+    may be full or elsewhere), else in the temporary folder; removed afterwards, whatever happens."""
+    fd, path = tempfile.mkstemp(prefix=".shapeflow.", suffix=suffix, dir=_WRITING_IN.get())
+    os.close(fd)
+    try:
+        yield path
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(path)
 
 
 def unnamed_file(directory: str) -> int | None:

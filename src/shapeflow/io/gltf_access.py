@@ -6,8 +6,9 @@ included), byteOffset, count, the bufferView's byteOffset, byteLength and byteSt
 a multiple of 4, at least one element), the bufferView inside its buffer and every element inside
 the bufferView.  Only then is an array made, by numpy's own bounds-checked constructor.  Sparse
 accessors are read as the spec says (their values over the base or zeros, indices strictly
-increasing and inside the accessor); accessors without a bufferView (zeros) are bounded by the
-memory available.
+increasing and inside the accessor); accessors without a bufferView (zeros, or zeros under sparse
+values) hold at most max(65,536, 16 × the bytes of the file and the buffers it loaded) elements in
+all, per file (:class:`ZeroBudget`), and within that by the memory available.
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import numpy as np
 from ..errors import MeshError
 from .gltf_source import entry, field_int, is_int, room
 
-__all__ = ["COMPONENT", "WIDTH", "ROLES", "Span", "Accessor", "accessor", "read_raw", "read_float",
+__all__ = ["COMPONENT", "WIDTH", "ROLES", "Span", "Accessor", "ZeroBudget", "accessor", "read_raw", "read_float",
            "dequantize", "view_span"]
 
 COMPONENT = {5120: "i1", 5121: "u1", 5122: "i2", 5123: "u2", 5125: "u4", 5126: "f4"}
@@ -64,6 +65,33 @@ class Accessor:
     normalized: bool
     span: Span | None
     sparse: tuple | None
+
+
+class ZeroBudget:
+    """The elements a file may declare in accessors without a bufferView (zeros: nothing in the
+    file backs them): max(ZERO_MIN, ZERO_PER_BYTE × ``nbytes``) in all, each accessor counted once,
+    so a few hundred bytes cannot ask for 30 million vertices."""
+
+    ZERO_MIN, ZERO_PER_BYTE = 65_536, 16
+
+    def __init__(self, name: str, nbytes: int):
+        self.name, self.nbytes = name, int(nbytes)
+        self.limit = max(self.ZERO_MIN, self.ZERO_PER_BYTE * self.nbytes)
+        self.taken: dict = {}
+        self.total = 0
+
+    def take(self, i: int, count: int, what: str) -> None:
+        if i in self.taken:
+            return
+        self.taken[i] = count
+        self.total += count
+        if self.total > self.limit:
+            before = self.total - count
+            raise MeshError(f"{self.name}: accessor {i} ({what}) has no bufferView: its {count:,} elements (zeros) "
+                            + (f"and the {before:,} of earlier such accessors " if before else "")
+                            + f"exceed the {self.limit:,} a file may declare without bytes behind them "
+                            f"(max({self.ZERO_MIN:,}, {self.ZERO_PER_BYTE} × the {self.nbytes:,} bytes of the file "
+                            "and the buffers it loaded))")
 
 
 def view_span(doc: dict, buffers: list, vi, name: str, what: str) -> tuple[int, int, int, int | None]:
@@ -147,9 +175,11 @@ def _sparse(doc, buffers, acc, i, name, role, elem, count) -> tuple | None:
     return spans[0], spans[1], COMPONENT[ct]
 
 
-def accessor(doc: dict, buffers: list, i, name: str, role: str, *, budget: bool = True) -> Accessor:
+def accessor(doc: dict, buffers: list, i, name: str, role: str, *, budget: bool = True,
+             zeros: ZeroBudget | None = None) -> Accessor:
     """Accessor ``i``, checked for the role ``role`` (a key of :data:`ROLES`; any other role allows
-    every type) and its bounds; ``budget``: refuse zeros that cannot fit in memory."""
+    every type) and its bounds; ``budget``: refuse zeros that cannot fit in memory; ``zeros``: the
+    file's budget of elements without a bufferView."""
     acc = entry(doc, "accessors", i, name, role)
     dtype, width, norm = _element(acc, i, name, role)
     count = field_int(acc, "count", f"accessor {i} ({role})", name, lo=1, required=True)
@@ -157,6 +187,8 @@ def accessor(doc: dict, buffers: list, i, name: str, role: str, *, budget: bool 
     elem = itemsize * width
     span = _dense_span(doc, buffers, acc, i, name, role, elem, itemsize, count)
     sparse = _sparse(doc, buffers, acc, i, name, role, elem, count)
+    if span is None and zeros is not None:
+        zeros.take(i, count, f"{role}: {acc['type']}")
     if span is None and budget:
         room(name, f"accessor {i} ({role}: {count} {acc['type']} without a bufferView)", 32 * count * width)
     return Accessor(i, dtype, width, count, norm, span, sparse)

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..errors import DataLossWarning
 from ..mesh import Mesh
+from .float32 import as_float32
 
 __all__ = ["new_document", "split_vertices", "fan_corners"]
 
@@ -49,7 +50,7 @@ def new_document(lib, mesh: Mesh) -> tuple[dict, list]:
                                       "not kept: " + ", ".join(lost)), stacklevel=5)
     src, corner_vertex, values = split_vertices(mesh, corner)
     tris = corner_vertex[fan_corners(mesh)].astype("<u4")
-    arrays = [("POSITION", np.ascontiguousarray(mesh.vertices[src], "<f4"), "VEC3")]
+    arrays = [("POSITION", as_float32(mesh.vertices[src], "glTF"), "VEC3")]
     if "normal" in values:
         n = values["normal"]
         ln = np.linalg.norm(n, axis=1, keepdims=True)

@@ -7,9 +7,9 @@ import warnings
 import numpy as np
 
 from ..errors import DataLossWarning, MeshError
-from ..geometry.placement import place, place_normals
+from ..geometry.placement import orientation, place, place_normals
 from ..mesh import Mesh
-from .gltf_access import accessor, dequantize, read_raw
+from .gltf_access import ZeroBudget, accessor, dequantize, read_raw
 from .gltf_scene import mesh_placements
 from .gltf_source import (
     check_extensions,
@@ -53,14 +53,15 @@ def _triangle_primitives(doc: dict, name: str) -> tuple[list, int]:
 class _Reader:
     """Decodes each accessor once (shared accessors are read once) and collects the mesh."""
 
-    def __init__(self, doc: dict, buffers: list, name: str):
+    def __init__(self, doc: dict, buffers: list, name: str, nbytes: int):
         self.doc, self.buffers, self.name = doc, buffers, name
         self.cache: dict = {}
         self.checks: dict = {}
+        self.zeros = ZeroBudget(name, nbytes)
 
     def checked(self, i, role: str):
         if not is_int(i) or (i, role) not in self.checks:      # a non-integer is refused by accessor()
-            self.checks[i, role] = accessor(self.doc, self.buffers, i, self.name, role)
+            self.checks[i, role] = accessor(self.doc, self.buffers, i, self.name, role, zeros=self.zeros)
         return self.checks[i, role]
 
     def values(self, i, role: str) -> np.ndarray:
@@ -109,7 +110,7 @@ def _block_positions(r: _Reader, blocks: dict) -> list:
     out, base = [], 0
     for b in blocks.values():
         M = b["matrix"]
-        if abs(np.linalg.det(M[:3, :3])) < 1e-300:
+        if not orientation(M):
             raise MeshError(f"{r.name}: mesh {b['mesh']} is shown by a node whose transform is singular (scale 0)")
         with np.errstate(over="ignore", invalid="ignore"):
             pos = place(r.values(b["position"], "POSITION"), M)
@@ -162,7 +163,9 @@ def _read(data: bytes, name: str, external_files: bool) -> Mesh:
     check_images(doc, folder, name)
     placement, shown = mesh_placements(doc, name)
     prims, skipped = _triangle_primitives(doc, name)
-    r = _Reader(doc, buffers, name)
+    external = sum(len(blob) for b, blob in zip(doc.get("buffers") or [], buffers)
+                   if isinstance(b, dict) and isinstance(b.get("uri"), str) and b["uri"][:5].lower() != "data:")
+    r = _Reader(doc, buffers, name, len(data) + external)
     plan, blocks = _plan(r, prims, placement)
     if not plan:
         raise MeshError(f"{name}: no triangle mesh in the glTF file")

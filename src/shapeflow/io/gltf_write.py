@@ -29,6 +29,7 @@ import numpy as np
 from ..errors import DataLossWarning, MeshError
 from ..geometry.placement import unplace, unplace_normals
 from ..mesh import Mesh
+from .float32 import F32_MAX
 from .gltf_access import Span, accessor, dequantize, read_raw, view_span
 from .gltf_source import BIN_CHUNK, GLB_MAGIC, JSON_CHUNK, items, load_image
 
@@ -36,7 +37,6 @@ __all__ = ["write_back", "pack", "MAX_PAIRS"]
 
 #: above this many (accessor written, byte reader) pairs to compare, every accessor is re-encoded
 MAX_PAIRS = 2_000_000
-_F32_MAX = float(np.finfo(np.float32).max)
 
 
 def _contributions(meta: dict, mesh: Mesh) -> dict:
@@ -50,7 +50,8 @@ def _contributions(meta: dict, mesh: Mesh) -> dict:
     out: dict = {}
     for b in blocks:
         sl = slice(b["base"], b["base"] + b["vertices"])
-        part = (unplace(V[sl], b["matrix"]), used[sl], f"mesh {b['mesh']}")
+        with np.errstate(over="ignore", invalid="ignore"):    # beyond float32: refused by _encode
+            part = (unplace(V[sl], b["matrix"]), used[sl], f"mesh {b['mesh']}")
         out.setdefault(b["position"], ("POSITION", []))[1].append(part)
     positions = {b["position"] for b in blocks}
     masks: dict = {}
@@ -157,7 +158,7 @@ def _in_place(doc: dict, blobs: list, written: dict, name: str) -> set:
 def _encode(values: np.ndarray, mask: np.ndarray, dtype: str, normalized: bool) -> np.ndarray | None:
     """Values in the accessor's component type; None if they leave its range."""
     if dtype == "f4":
-        if (np.abs(values[mask]) > _F32_MAX).any():
+        if not (np.abs(values[mask]) <= F32_MAX).all():
             raise MeshError("new positions leave float32, the widest glTF component type")
         return np.where(mask[:, None], values, 0.0).astype("<f4")
     info = np.iinfo(dtype)

@@ -5,7 +5,8 @@ vertex attribute ``"color"``), texture coordinates ``vt`` and normals ``vn`` as
 the corner attributes ``"uv"`` and ``"normal"`` (tables and per-corner indices, so
 their sharing and seams come back unchanged), ``usemtl``, ``g``, ``o`` and ``s``
 as the face attributes ``"material"``, ``"group"``, ``"object"`` and ``"smooth"``,
-and ``mtllib`` lines and comments as metadata.  Polylines ``l``, points ``p`` and OpenSubdiv tags
+and ``mtllib`` lines and comments as metadata (``# shapeflow front -z``: ``metadata["front"]``, the
+axis the model faces, as PLY's ``comment shapeflow front -z``).  Polylines ``l``, points ``p`` and OpenSubdiv tags
 ``t`` (creases, corners, holes) refer to vertex numbers: they are kept as metadata and written
 back after the faces while the vertices keep their numbering (smoothing, enhancement, the brush),
 with a warning otherwise.  Curves and surfaces (and ``l``/``p``/``t`` lines with relative indices)
@@ -15,6 +16,7 @@ cannot be kept: they are counted in ``mesh.metadata["obj"]["dropped"]`` and name
 
 from __future__ import annotations
 
+import os
 import re
 import warnings
 from typing import BinaryIO
@@ -24,9 +26,11 @@ import numpy as np
 from ..errors import DataLossWarning, MeshError
 from ..mesh import Mesh
 from ..mesh.attributes import Indexed, Labels
+from .atomic import writing_in
+from .ply import front_comment, front_from_comments
 from .text import Text, build_mesh, ranges, text_data, write_rows
 
-__all__ = ["read_obj", "write_obj", "FACE_TAGS"]
+__all__ = ["read_obj", "write_obj", "FACE_TAGS", "crease_tags", "is_crease_tag"]
 
 TAG_START = np.zeros(256, dtype=bool)
 TAG_START[np.frombuffer(b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_", np.uint8)] = True
@@ -62,28 +66,108 @@ def _texts(txt: Text, recs: np.ndarray) -> list[str]:
     return joined.split("\n")[:-1]
 
 
-def _vertex_elements(txt: Text, recs: np.ndarray) -> tuple[list, dict]:
+def _vertex_elements(txt: Text, a: np.ndarray, recs: np.ndarray, n_v: int, n_vt: int, n_f: int) -> tuple[list, dict]:
     """The ``l`` (polylines), ``p`` (points) and ``t`` (OpenSubdiv tags: creases, corners, holes) lines
-    as ``(tag, rest of the line)``, kept to be written back while the vertex numbering holds; lines
-    with relative (negative) indices would change meaning at the end of a new file: counted instead."""
+    as ``(tag, rest of the line)``, checked as faces are (a MeshError naming the line), kept to be
+    written back while the vertex numbering holds; ``l``/``p`` lines with relative (negative)
+    indices would change meaning at the end of a new file: counted instead."""
     if recs.size == 0:
         return [], {}
     rf = txt.rec_first[recs]
     tags = [txt.data[int(txt.start[r]):int(txt.end[r])].decode("latin-1") for r in rf]
+    is_t = np.array([t == "t" for t in tags])
+    relative = np.zeros(recs.size, bool)
+    relative[~is_t] = _check_polylines(txt, a, recs[~is_t], n_v, n_vt)
     rests = _texts(txt, recs)
-    keep, relative = [], {}
-    for tag, rest in zip(tags, rests):      # one per polyline or tag line (few), never per vertex
-        words = rest.split()
-        if tag == "t" and len(words) >= 2:
-            n_int = int(words[1].split("/")[0]) if words[1].split("/")[0].isdigit() else 0
-            ints = words[2:2 + n_int]
-        else:
-            ints = [w.split("/")[0] for w in words]
-        if any(w.startswith("-") for w in ints):
-            relative[f"{tag} (relative indices)"] = relative.get(f"{tag} (relative indices)", 0) + 1
+    keep, dropped = [], {}
+    for k in np.flatnonzero(is_t).tolist():      # one per tag line (few), never per vertex
+        _check_tag_line(txt, int(rf[k]), rests[k].split(), n_v, n_f)
+    for tag, rest, rel in zip(tags, rests, relative.tolist()):
+        if rel:
+            dropped[f"{tag} (relative indices)"] = dropped.get(f"{tag} (relative indices)", 0) + 1
         else:
             keep.append((tag, rest))
-    return keep, relative
+    return keep, dropped
+
+
+def _check_polylines(txt: Text, a: np.ndarray, recs: np.ndarray, n_v: int, n_vt: int) -> np.ndarray:
+    """Check the ``l v[/vt] ..`` and ``p v ..`` lines: at least 2 (``l``) or 1 (``p``) corners, whole
+    indices, none 0, none beyond the file's vertices and texture coordinates; (k,) whether each line
+    has a relative (negative) index."""
+    rf = txt.rec_first[recs]
+    cnt = txt.rec_count[recs] - 1
+    is_l = txt.end[rf] - txt.start[rf] == 1
+    is_l &= a[txt.start[rf]] == ord("l")
+    short = np.flatnonzero(cnt < np.where(is_l, 2, 1))
+    if short.size:
+        i = int(short[0])
+        what = "a polyline ('l') needs at least 2 vertices" if is_l[i] else "a 'p' line needs at least 1 vertex"
+        raise txt.error(rf[i], f"{what}, this one has {int(cnt[i])}")
+    tok = ranges(rf + 1, cnt)
+    owner = np.repeat(np.arange(recs.size), cnt)
+    ts, te, s1, s2 = _slashes(txt, a, tok)
+    slash = s1 < te          # l: v or v/vt (a texture index after the slash); p: v only
+    bad = np.flatnonzero((s1 == ts) | (s2 < te) | (slash & ((s1 + 1 == te) | ~is_l[owner])))
+    if bad.size:
+        c = int(bad[0])
+        form = "v or v/vt" if is_l[owner[c]] else "v"
+        raise txt.error(tok[c], f"{txt.token(tok[c])} is not a corner of the form {form}")
+    raw = txt.parse(tok, np.int64, "vertex index", ends=s1)
+    relative = np.bincount(owner, raw < 0, minlength=recs.size) > 0
+    for vals, toks, n, what in ((raw, tok, n_v, "vertex"),) + _vt_part(txt, tok, s1, te, n_vt, relative, owner):
+        zero = np.flatnonzero(vals == 0)
+        if zero.size:
+            raise txt.error(toks[int(zero[0])], f"{what} index 0 (OBJ indices start at 1)")
+        over = np.flatnonzero(vals > n)
+        if over.size:
+            c = int(over[0])
+            raise txt.error(toks[c], f"{what} index {int(vals[c])} out of range: the file has {n} {_PLURAL[what]}")
+    return relative
+
+
+def _vt_part(txt: Text, tok, s1, te, n_vt: int, relative: np.ndarray, owner) -> tuple:
+    """The texture indices of ``l v/vt`` corners, for the checks of :func:`_check_polylines` (a relative
+    one marks its line in ``relative``)."""
+    has = s1 + 1 < te
+    if not has.any():
+        return ()
+    vt = txt.parse(tok[has], np.int64, "texture coordinate index", starts=s1[has] + 1, ends=te[has])
+    relative |= np.bincount(owner[has], vt < 0, minlength=relative.size) > 0
+    return ((vt, tok[has], n_vt, "texture coordinate"),)
+
+
+_PLURAL = {"vertex": "vertices", "texture coordinate": "texture coordinates", "face": "faces"}
+#: OpenSubdiv tags whose integers number vertices (from 0) or faces (from 0)
+_TAG_INDICES = {"crease": "vertex", "corner": "vertex", "hole": "face"}
+
+
+def _check_tag_line(txt: Text, tok: int, words: list, n_v: int, n_f: int) -> None:
+    """``t NAME i/f[/s] ints.. floats.. strings..`` (OpenSubdiv): the counts match the values, the
+    integers are integers, the floats numbers, and a crease's, corner's or hole's integers number
+    vertices or faces of the file (from 0, OpenSubdiv's convention)."""
+    if len(words) < 2:
+        raise txt.error(tok, "a 't' line needs a tag name and its counts (t NAME ints/floats[/strings] values)")
+    name, counts = words[0], words[1].split("/")
+    if not 2 <= len(counts) <= 3 or not all(c.isascii() and c.isdigit() for c in counts):
+        raise txt.error(tok, f"'t {name}': {words[1]!r} is not the counts ints/floats[/strings]")
+    ni, nf, ns = (int(c) for c in (*counts, "0")[:3])
+    values = words[2:]
+    if ni + nf + ns != len(values):
+        raise txt.error(tok, f"'t {name} {words[1]}' declares {ni + nf + ns} values; the line has {len(values)}")
+    try:
+        ints = np.array(values[:ni]).astype(np.int64)
+    except (ValueError, OverflowError):
+        raise txt.error(tok, f"'t {name}': its {ni} integers are not all integers") from None
+    try:
+        np.array(values[ni:ni + nf]).astype(np.float64)
+    except ValueError:
+        raise txt.error(tok, f"'t {name}': its {nf} floats are not all numbers") from None
+    kind = _TAG_INDICES.get(name)
+    n = n_v if kind == "vertex" else n_f
+    bad = np.flatnonzero((ints < 0) | (ints >= n)) if kind else np.zeros(0, np.int64)
+    if bad.size:
+        raise txt.error(tok, f"'t {name}': {kind} {int(ints[bad[0]])} out of range: the file has {n} {_PLURAL[kind]}, "
+                        "numbered from 0 in OpenSubdiv tags")
 
 
 def read_obj(data: bytes, name: str) -> Mesh:
@@ -115,11 +199,14 @@ def read_obj(data: bytes, name: str) -> Mesh:
         corner["normal"] = Indexed(_table(txt, np.flatnonzero(is_vn), (3,), "normal"), vn_idx)
     face = {attr: _labels(txt, np.flatnonzero(is_state[tag]), frec)
             for tag, attr in FACE_TAGS.items() if is_state[tag].any()}
-    elements, relative = _vertex_elements(txt, np.flatnonzero(is_elem))
+    elements, relative = _vertex_elements(txt, a, np.flatnonzero(is_elem), vrec.size, int(is_vt.sum()), frec.size)
     if relative:
         dropped = {**dropped, **relative}
-    meta = {"comments": [c for c in comments if not c.startswith(_OWN_HEADER)],
+    front, comments = front_from_comments([c for c in comments if not c.startswith(_OWN_HEADER)])
+    meta = {"comments": comments,
             "mtllib": _texts(txt, np.flatnonzero(is_state[b"mtllib"])), "dropped": dropped}
+    if meta["mtllib"]:      # where the material libraries are, for a copy written elsewhere
+        meta["folder"] = os.path.dirname(os.path.abspath(name))
     if elements:
         meta["elements"] = elements
         meta["elements_of"] = (vrec.size, idx)     # the vertex numbering the lines refer to
@@ -128,8 +215,9 @@ def read_obj(data: bytes, name: str) -> Mesh:
         warnings.warn(DataLossWarning(f"{name}: not kept (they describe no polygon): {what}"), stacklevel=3)
     vfirst = rf[vrec]
     keep = corner or face or any(meta.values())
+    metadata = {**({"obj": meta} if keep else {}), **({"front": front} if front else {})}
     return build_mesh(name, vertices, sizes, idx, attributes=attributes, corner_attributes=corner,
-                      face_attributes=face, metadata={"obj": meta} if keep else None,
+                      face_attributes=face, metadata=metadata or None,
                       where_vertex=lambda i: f"line {txt.lineno(vfirst[i])}",
                       where_face=lambda f: f"line {txt.lineno(ffirst[f])}")
 
@@ -323,8 +411,9 @@ def write_obj(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None) -> None:
                                       "attributes)"), stacklevel=4)
     meta = mesh.metadata.get("obj", {})
     head = [f"# {_OWN_HEADER} {mesh.n_vertices} vertices, {mesh.n_faces} faces"]
-    head += [f"# {c}" for c in meta.get("comments", [])]
+    head += [f"# {c}" for c in front_comment(mesh) + meta.get("comments", [])]
     head += [f"mtllib {m}" for m in meta.get("mtllib", [])]
+    _warn_missing_libraries(meta)
     f.write(("\n".join(head) + "\n").encode("utf-8"))
     color = mesh.attributes.get("color")
     if color is not None and color.ndim == 2 and color.shape[1] == 3:
@@ -340,6 +429,9 @@ def write_obj(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None) -> None:
         write_rows(f, "vn %r %r %r\n", np.asarray(nrm.values, np.float64))
     _write_faces(f, mesh, uv, nrm, _state_lines(mesh))
     elements = meta.get("elements")
+    creases = getattr(mesh, "creases", None)
+    if creases is not None:     # a subdivision's creases replace the file's crease tags
+        elements = [e for e in elements or () if not is_crease_tag(e)]
     if elements:
         n, idx = meta["elements_of"]
         if n == mesh.n_vertices and np.array_equal(idx, mesh.face_indices):
@@ -347,6 +439,46 @@ def write_obj(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None) -> None:
         else:
             warnings.warn(DataLossWarning(f"{len(elements)} 'l'/'p'/'t' lines refer to the input's vertex numbering, "
                                           "which changed (subdivision?): not written"), stacklevel=4)
+    if creases is not None:
+        f.write("".join(f"{tag} {rest}\n" for tag, rest in crease_tags(creases)).encode("utf-8"))
+
+
+def crease_tags(creases) -> list[tuple[str, str]]:
+    """``mesh.creases`` (pairs, Blender's values c) as OBJ ``t crease 2/1 i j s`` lines: one per edge
+    with a positive sharpness s = 10·c² (10: infinitely sharp), 0-based as OpenSubdiv reads them."""
+    pairs, c = (np.asarray(x) for x in creases)
+    s = np.minimum(10.0 * np.square(c.astype(np.float64)), 10.0)
+    keep = s > 0
+    if not keep.any():
+        return []
+    p = pairs[keep].astype(np.int64)
+    rest = np.char.add(np.char.add(np.char.add("crease 2/1 ", p[:, 0].astype(str)), " "), p[:, 1].astype(str))
+    rest = np.char.add(np.char.add(rest, " "), np.char.mod("%.17g", s[keep]))
+    return [("t", r) for r in rest.tolist()]
+
+
+def is_crease_tag(element) -> bool:
+    """Whether an OBJ element line kept by the reader (tag, rest) is a ``t crease`` tag."""
+    tag, rest = element
+    return tag == "t" and rest.split()[:1] == ["crease"]
+
+
+def _warn_missing_libraries(meta: dict) -> None:
+    """A DataLossWarning naming the material libraries ('mtllib') the written file names but its
+    folder does not hold, while the source's folder does (or the source is unknown): they are not
+    copied (nor the textures they name); the warning says where they are."""
+    folder, src = writing_in(), meta.get("folder")
+    names = [w for line in meta.get("mtllib", []) for w in line.split()]
+    # missing beside the output, and there beside the source (a library the source lacks too loses nothing)
+    missing = [n for n in names if folder is not None and not os.path.isfile(os.path.join(folder, n))
+               and (src is None or os.path.isfile(os.path.join(src, n)))]
+    if not missing:
+        return
+    warnings.warn(DataLossWarning(
+        f"the material librar{'y' if len(missing) == 1 else 'ies'} {', '.join(map(repr, missing))} named by "
+        f"'mtllib' {'is' if len(missing) == 1 else 'are'} not in the output's folder: materials will not show "
+        + (f"until {'it is' if len(missing) == 1 else 'they are'} copied there from {src} (with the textures "
+           "named in it)" if src is not None else "(shapeflow writes the OBJ file only)")), stacklevel=5)
 
 
 def _as_indexed(attr):

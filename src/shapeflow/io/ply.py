@@ -12,7 +12,7 @@ from ..errors import DataLossWarning, MeshError
 from ..mesh import Mesh
 from .text import Text, build_mesh, ranges, strip_bom
 
-__all__ = ["read_ply", "PLY_TYPES", "OWN_COMMENT"]
+__all__ = ["read_ply", "PLY_TYPES", "OWN_COMMENT", "MAX_HEADER_BYTES", "front_comment", "front_from_comments"]
 
 
 PLY_TYPES = {
@@ -25,6 +25,26 @@ _PLY_FORMATS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian":
 _END_HEADER_RE = re.compile(rb"^end_header[ \t]*(?:\r?\n|$)", re.MULTILINE)
 _FACE_LISTS = ("vertex_indices", "vertex_index")
 OWN_COMMENT = "written by shapeflow"
+#: the header (the text before ``end_header``) is at most this long: ~700,000 property lines, where
+#: real files have tens; it is parsed in one pass either way
+MAX_HEADER_BYTES = 16 << 20
+#: the comment that keeps ``metadata["front"]`` (the axis the model faces, for the renderer's views):
+#: ``comment shapeflow front -z`` in PLY, ``# shapeflow front -z`` in OBJ; only this exact form is read
+_FRONT = re.compile(r"shapeflow front ([+-][xyz])")
+
+
+def front_comment(mesh: Mesh) -> list[str]:
+    """The comment text that keeps ``mesh.metadata["front"]`` (one of +x, -x, +y, -y, +z, -z), or none."""
+    front = mesh.metadata.get("front")
+    return [f"shapeflow front {front}"] if isinstance(front, str) and _FRONT.fullmatch(f"shapeflow front {front}") \
+        else []
+
+
+def front_from_comments(comments: list[str]) -> tuple[str | None, list[str]]:
+    """The front a file's comments declare (the last ``shapeflow front AXIS``), and the other comments."""
+    found = [_FRONT.fullmatch(c.rstrip()) for c in comments]
+    fronts = [m.group(1) for m in found if m]
+    return (fronts[-1] if fronts else None), [c for c, m in zip(comments, found) if not m]
 
 
 @dataclass
@@ -47,8 +67,11 @@ class _Element:
 
 
 def _parse_ply_header(header: str, name: str) -> tuple[str | None, list[_Element]]:
+    """The byte order (None: ASCII) and the elements; one pass, each name looked up in a dict."""
     order = False
     elements: list[_Element] = []
+    element_line: dict[str, int] = {}          # element name -> its line
+    prop_names: set[str] = set()               # the current element's property names
     seen_format = False
     for ln, line in enumerate(header.split("\n"), start=1):
         words = line.split()
@@ -70,17 +93,19 @@ def _parse_ply_header(header: str, name: str) -> tuple[str | None, list[_Element
         elif key == "element":
             if len(words) != 3 or not words[2].isascii() or not words[2].isdigit():
                 raise err(f"bad element line {line.strip()!r}; expected 'element NAME COUNT'")
-            twin = next((el for el in elements if el.name == words[1]), None)
-            if twin is not None:
-                raise err(f"a second '{words[1]}' element (the first is on line {twin.line}); "
+            if words[1] in element_line:
+                raise err(f"a second '{words[1]}' element (the first is on line {element_line[words[1]]}); "
                           "which one holds the mesh is ambiguous")
+            element_line[words[1]] = ln
+            prop_names = set()
             elements.append(_Element(words[1], int(words[2]), ln, []))
         elif key == "property":
             if not elements:
                 raise err("property before any element")
-            if len(words) >= 3 and any(p.name == words[-1] for p in elements[-1].props):
+            if len(words) >= 3 and words[-1] in prop_names:
                 raise err(f"property '{words[-1]}' of element '{elements[-1].name}' is declared twice; "
                           "which one holds the values is ambiguous")
+            prop_names.add(words[-1])
             if len(words) == 3 and words[1] in PLY_TYPES:
                 elements[-1].props.append(_Prop(words[2], np.dtype(PLY_TYPES[words[1]])))
             elif (len(words) == 5 and words[1] == "list" and words[2] in PLY_TYPES
@@ -311,7 +336,10 @@ def read_ply(data: bytes, name: str) -> Mesh:
     first_line = data.split(b"\n", 1)[0].strip()
     if first_line != b"ply":
         raise MeshError(f"{name}: line 1: not a PLY file (the first line must be 'ply')")
-    m = _END_HEADER_RE.search(data)
+    m = _END_HEADER_RE.search(data, 0, MAX_HEADER_BYTES + len("end_header\r\n"))
+    if not m and len(data) > MAX_HEADER_BYTES:
+        raise MeshError(f"{name}: no 'end_header' line in the first {MAX_HEADER_BYTES >> 20} MiB: a PLY header "
+                        f"is at most {MAX_HEADER_BYTES >> 20} MiB (about 700,000 property lines)")
     if not m:
         raise MeshError(f"{name}: PLY header has no 'end_header' line (truncated or not a PLY file)")
     try:   # comments and obj_info may hold any UTF-8 text; keywords are checked to be ASCII
@@ -340,7 +368,7 @@ def read_ply(data: bytes, name: str) -> Mesh:
         warnings.warn(DataLossWarning(f"{name}: not kept: {', '.join(lost)}"), stacklevel=3)
     meta = {key: [ln.split(None, 1)[1] if len(ln.split(None, 1)) > 1 else "" for ln in header.split("\n")
                   if ln.split(None, 1)[:1] == [key]] for key in ("comment", "obj_info")}
-    meta["comment"] = [c for c in meta["comment"] if c != OWN_COMMENT]
+    front, meta["comment"] = front_from_comments([c for c in meta["comment"] if c != OWN_COMMENT])
     # what writing it back needs: each property's type, in the file's order, and the list properties
     # that are not the faces' corners or texture coordinates (valid while vertices and faces stay)
     meta["types"] = {el.name: {p.name: (p.count_dtype.newbyteorder("=").str[1:], p.dtype.newbyteorder("=").str[1:])
@@ -350,7 +378,8 @@ def read_ply(data: bytes, name: str) -> Mesh:
         meta["lists"] = {"vertex": vlists, "face": flists}
         meta["lists_of"] = (vertices.shape[0], idx)
     return build_mesh(name, vertices, sizes, idx, attributes=attributes, corner_attributes=corner,
-                      face_attributes=face, metadata={"ply": meta}, where_vertex=vloc, where_face=floc)
+                      face_attributes=face, metadata={"ply": meta, **({"front": front} if front else {})},
+                      where_vertex=vloc, where_face=floc)
 
 
 def _face_extras(fel: _Element, vals: dict, sizes: np.ndarray, name: str, floc):

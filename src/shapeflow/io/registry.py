@@ -3,11 +3,12 @@
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass
 from typing import Callable
 
 from .. import params
-from ..errors import MeshError, ParameterError
+from ..errors import DataLossWarning, MeshError, ParameterError
 from ..mesh import Mesh
 from ..mesh.convert import as_mesh
 from ..types import PathLike
@@ -138,7 +139,22 @@ def save(path: PathLike, mesh: Mesh, *, format: str | None = None, binary: bool 
     fmt = format_for(name, format)
     if binary and not fmt.binary:
         raise MeshError(f"{name}: {fmt.name} has no binary variant")
+    _warn_lost_creases(mesh, name, fmt)
     try:
         atomic_write(name, lambda f: fmt.writer(f, mesh, binary=binary), force=force)
     except MeshError as exc:  # writers' messages do not know the file name
         raise MeshError(f"{name}: {exc}") from None
+
+
+def _warn_lost_creases(mesh: Mesh, name, fmt) -> None:
+    """A DataLossWarning when ``mesh.creases`` (a subdivision's) has creased edges and the format is
+    not OBJ, the one that keeps them (``t crease`` lines)."""
+    creases = getattr(mesh, "creases", None)
+    if creases is None or fmt.name == "OBJ":
+        return
+    import numpy as np
+
+    n = int((np.asarray(creases[1]) > 0).sum())
+    if n:
+        warnings.warn(DataLossWarning(f"{name}: the mesh's {n} creased edges are not written ({fmt.name} cannot "
+                                      "store creases; an OBJ keeps them as 't crease' lines)"), stacklevel=3)

@@ -27,8 +27,9 @@ from typing import BinaryIO
 import numpy as np
 
 from ..errors import DataLossWarning, MeshError
-from ..geometry.measures import face_vector_areas, fan_triangles
+from ..geometry.measures import face_vector_areas, fan_triangles, pow2_exponent
 from ..mesh import Mesh
+from .float32 import as_float32
 from .text import Text, ranges, strip_bom
 
 __all__ = ["read_stl", "write_stl", "RECORD"]
@@ -190,7 +191,10 @@ def write_stl(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None) -> None:
     _warn_losses(mesh)
     tris = fan_triangles(mesh)
     V = mesh.vertices
-    normals = face_vector_areas(Mesh.from_csr(V, np.full(tris.shape[0], 3), tris.reshape(-1)))
+    as_float32(V, "STL")
+    k = pow2_exponent(V)       # normals are scale-free: areas of extreme coordinates on an exact copy
+    normals = face_vector_areas(Mesh.from_csr(np.ldexp(V, -k) if k else V, np.full(tris.shape[0], 3),
+                                              tris.reshape(-1)))
     ln = np.linalg.norm(normals, axis=1)
     normals = np.divide(normals, ln[:, None], out=np.zeros_like(normals), where=ln[:, None] > 0)
     attr = mesh.face_attributes.get("stl_attribute")

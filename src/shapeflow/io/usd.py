@@ -28,8 +28,9 @@ writes the stage back with new ``points`` (each prim in its own coordinates agai
 normals wherever the prim had them (``normals`` and ``primvars:normals``, each in its own
 interpolation: vertex, varying, faceVarying with its splits kept, uniform, constant; indexed
 normals are written flat), and a new ``extent``: materials, other prims, attributes and metadata
-pass through.  A file of one layer is written as that layer (nothing flattened, asset paths as
-written); a composed stage is flattened into one layer.  Time-sampled points cannot be kept: the
+pass through.  A file of one layer that composes no file is written as that layer (nothing
+flattened, asset paths as written); a stage that composes files (a layer referring to itself
+included) is flattened into one layer.  Time-sampled points cannot be kept: the
 prim is written as the one pose that was read, and its time-sampled points, normals, extent and
 topology lose their samples (the default value is the new pose); a
 :class:`~shapeflow.errors.DataLossWarning` names each such prim, attribute, sample count and time.
@@ -39,17 +40,17 @@ Any other mesh is written as a new stage with one ``Mesh`` prim (n-gons kept, ``
 
 from __future__ import annotations
 
-import os
-import tempfile
 import warnings
 from typing import BinaryIO
 
 import numpy as np
 
-from ..errors import DataLossWarning, MeshError
-from ..geometry.placement import place, place_normals, unplace, unplace_normals
+from ..errors import DataLossWarning, MeshError, OutputError
+from ..geometry.placement import orientation, place, place_normals, unplace, unplace_normals
 from ..mesh import Mesh
-from .usd_layers import open_stage, pxr_error, pxr_modules
+from .atomic import side_file
+from .float32 import as_float32
+from .usd_layers import open_stage, pxr_diagnostics, pxr_error, pxr_modules
 
 __all__ = ["read_usd", "write_usd"]
 
@@ -143,7 +144,18 @@ def read_usd(data: bytes, name: str, *, external_files: bool = True) -> Mesh:
         except UnicodeDecodeError as exc:
             line = data.count(b"\n", 0, exc.start) + 1
             raise MeshError(f"{name}: line {line}: not UTF-8 text") from None
-    stage, root, layers = open_stage(name, external_files)
+    with pxr_diagnostics(name, "reading"):     # pxr's warnings: one DataLossWarning, or a MeshError for cycles
+        stage, root, composes, parts = _compose(name, external_files, Usd, UsdGeom)
+        try:      # the text written back (a damaged crate file may hold strings that are not UTF-8)
+            text = stage.Flatten().ExportToString() if composes else root.ExportToString()
+        except (RuntimeError, UnicodeError) as exc:
+            raise MeshError(f"{name}: the stage cannot be written as text ({pxr_error(exc)})") from exc
+    return _assemble(name, text, *parts.values())
+
+
+def _compose(name: str, external_files: bool, Usd, UsdGeom):
+    """The stage, its root layer, whether it composes files, and its Mesh prims read into parts."""
+    stage, root, _, composes = open_stage(name, external_files)
     parts = {k: [] for k in ("V", "S", "F", "uv", "nrm", "col", "obj", "layout")}
     base = 0
     for prim in stage.Traverse():
@@ -155,11 +167,7 @@ def read_usd(data: bytes, name: str, *, external_files: bool = True) -> Mesh:
             raise MeshError(f"{name}: {prim.GetPath()} cannot be read ({pxr_error(exc)})") from exc
     if not parts["V"]:
         raise MeshError(f"{name}: no Mesh prim with points and faces in the USD stage")
-    try:      # the text written back (a damaged crate file may hold strings that are not UTF-8)
-        text = root.ExportToString() if len(layers) == 1 else stage.Flatten().ExportToString()
-    except (RuntimeError, UnicodeError) as exc:
-        raise MeshError(f"{name}: the stage cannot be written as text ({pxr_error(exc)})") from exc
-    return _assemble(name, text, *parts.values())
+    return stage, root, composes, parts
 
 
 def _read_prim(name, prim, base: int, parts: dict, Usd, UsdGeom) -> int:
@@ -181,12 +189,21 @@ def _read_prim(name, prim, base: int, parts: dict, Usd, UsdGeom) -> int:
         raise MeshError(f"{name}: {prim.GetPath()}: faceVertexCounts and faceVertexIndices do not agree "
                         f"with its {P.shape[0]} points")
     M = _world(UsdGeom, prim, t)
-    if not np.isfinite(M).all() or abs(np.linalg.det(M[:3, :3])) < 1e-300:
+    sign = orientation(M)
+    if not sign:
         raise MeshError(f"{name}: {prim.GetPath()} has a singular or non-finite transform")
+    with np.errstate(over="ignore", invalid="ignore"):
+        placed = place(P, M)
+    if not np.isfinite(P).all():
+        bad = int(np.flatnonzero(~np.isfinite(P).all(axis=1))[0])
+        raise MeshError(f"{name}: {prim.GetPath()}: point {bad} is not finite ({P[bad].tolist()})")
+    if not np.isfinite(placed).all():
+        raise MeshError(f"{name}: {prim.GetPath()}: its points placed by its transform leave double precision "
+                        f"(the largest placed coordinate would exceed {np.finfo(float).max:.3g})")
     left = mesh.GetOrientationAttr().Get(t) == UsdGeom.Tokens.leftHanded
-    flip = bool(left) != bool(np.linalg.det(M[:3, :3]) < 0)
+    flip = bool(left) != (sign < 0)
     perm = reversal(c) if flip else np.arange(i.size)
-    parts["V"].append(place(P, M))
+    parts["V"].append(placed)
     parts["S"].append(c)
     parts["F"].append(i[perm] + base)
     parts["obj"].append(np.full(c.size, len(parts["layout"])))
@@ -232,8 +249,18 @@ def _assemble(name, text, V, S, F, uv, nrm, col, obj, layout) -> Mesh:
 # --------------------------------------------------------------------------
 
 def write_usd(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None, ext: str = ".usda") -> None:
-    """The stage as USD text (``.usda``) or crate (``.usdc``; ``.usd`` is crate)."""
+    """The stage as USD text (``.usda``) or crate (``.usdc``; ``.usd`` is crate).  pxr writes a crate
+    only to a path: a hidden file beside the output (:func:`~shapeflow.io.atomic.side_file`), read
+    back and removed.  Whatever pxr raises is a MeshError (the caller names the output)."""
     Usd, UsdGeom, Sdf, _, Vt = pxr_modules()
+    try:
+        with pxr_diagnostics("", "writing"):
+            _write_usd(f, mesh, binary, ext, Usd, UsdGeom, Sdf, Vt)
+    except (RuntimeError, UnicodeError) as exc:     # Tf.ErrorException is a RuntimeError
+        raise MeshError(f"the USD library (pxr) cannot write the stage ({pxr_error(exc)})") from exc
+
+
+def _write_usd(f: BinaryIO, mesh: Mesh, binary, ext: str, Usd, UsdGeom, Sdf, Vt) -> None:
     meta = mesh.metadata.get("usd", {})
     same = "layer" in meta and np.array_equal(meta.get("faces", np.zeros(0)), mesh.face_indices)
     if "layer" in meta and not same:
@@ -250,9 +277,9 @@ def write_usd(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None, ext: str =
     if ext == ".usda" and not binary:
         f.write(stage.GetRootLayer().ExportToString().encode("utf-8"))
         return
-    with tempfile.TemporaryDirectory() as tmp:     # the crate format is written to a path only
-        path = os.path.join(tmp, "out.usdc")
-        stage.GetRootLayer().Export(path)
+    with side_file(".usdc") as path:               # the crate format is written to a path only
+        if not stage.GetRootLayer().Export(path):
+            raise OutputError("the USD library (pxr) could not write the crate file beside it")
         with open(path, "rb") as g:
             f.write(g.read())
 
@@ -292,9 +319,10 @@ def _set(attr, value, what: str) -> list:
 
 
 def _update(stage, layout: list, mesh: Mesh, Usd, UsdGeom, Vt) -> None:
-    from ..geometry.measures import face_vector_areas
+    from ..geometry.measures import face_vector_areas, pow2_exponent
 
-    fa_all = face_vector_areas(mesh)
+    k = pow2_exponent(mesh.vertices)     # only the normals' directions are used: an exact copy in range
+    fa_all = face_vector_areas(mesh, np.ldexp(mesh.vertices, -k) if k else None)
     base = fbase = cbase = 0
     frozen = []
     for item in layout:
@@ -315,9 +343,10 @@ def _update(stage, layout: list, mesh: Mesh, Usd, UsdGeom, Vt) -> None:
         for attr_name, interp in item["normals"]:
             changed += _write_normals(prim, attr_name, interp, tc, fa_all[fbase:fbase + nf], counts,
                                       corner_vertex, n, perm, M, UsdGeom, Vt)
-        local = unplace(mesh.vertices[base:base + n], M)
-        changed = _set(prim.GetPointsAttr(), Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(local, np.float32)),
-                       "points") + changed
+        with np.errstate(over="ignore", invalid="ignore"):
+            local = unplace(mesh.vertices[base:base + n], M)
+        local = as_float32(local, "USD points", f"{item['path']}'s points")
+        changed = _set(prim.GetPointsAttr(), Vt.Vec3fArray.FromNumpy(local), "points") + changed
         extent = UsdGeom.Boundable.ComputeExtentFromPlugins(UsdGeom.Boundable(prim.GetPrim()),
                                                             Usd.TimeCode.Default())
         if extent:
@@ -359,7 +388,7 @@ def _new_mesh(stage, mesh: Mesh, UsdGeom, Sdf, Vt) -> None:
     UsdGeom.SetStageUpAxis(stage, UsdGeom.Tokens.y)
     prim = UsdGeom.Mesh.Define(stage, "/Mesh")
     stage.SetDefaultPrim(prim.GetPrim())
-    prim.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(np.ascontiguousarray(mesh.vertices, np.float32)))
+    prim.GetPointsAttr().Set(Vt.Vec3fArray.FromNumpy(as_float32(mesh.vertices, "USD points")))
     prim.GetFaceVertexCountsAttr().Set(Vt.IntArray.FromNumpy(np.ascontiguousarray(mesh.face_sizes, np.int32)))
     prim.GetFaceVertexIndicesAttr().Set(Vt.IntArray.FromNumpy(np.ascontiguousarray(mesh.face_indices, np.int32)))
     prim.GetSubdivisionSchemeAttr().Set(UsdGeom.Tokens.none)

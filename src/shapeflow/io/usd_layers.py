@@ -13,14 +13,18 @@ the very layers that were checked.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import re
 import stat
 import subprocess
 import sys
+import threading
+import warnings
 
-from ..errors import MeshError, OptionalDependencyError
+from ..errors import DataLossWarning, MeshError, OptionalDependencyError
 
-__all__ = ["pxr_modules", "pxr_error", "open_stage", "LAYER_EXTENSIONS", "MAX_LAYERS"]
+__all__ = ["pxr_modules", "pxr_error", "pxr_diagnostics", "open_stage", "LAYER_EXTENSIONS", "MAX_LAYERS"]
 
 #: the layers a USD file may compose (other formats could refer to files that are not checked)
 LAYER_EXTENSIONS = (".usd", ".usda", ".usdc")
@@ -42,6 +46,56 @@ def pxr_error(exc: Exception) -> str:
     except UnicodeError:      # pxr's message quotes bytes of the file that are not UTF-8
         text = "a message quoting bytes that are not UTF-8"
     return f"{type(exc).__name__}: {text[:200]}"
+
+
+_DIAGNOSING = threading.local()
+_DIAGNOSTICS_LOCK = threading.RLock()
+_LAYER_IDS = re.compile(r"@[^@\n]*@(?:,@[^@\n]*@)*(?=<)")      # a layer stack's ids before a prim path
+_LAYER_PATH = re.compile(r"@([^@\n]*)@")
+_INSTANTIATING = re.compile(r"\s*\(instantiating stage on stage .*\)\s*$", re.S)
+
+
+def _tidy(commentary: str) -> str:
+    """A pxr diagnostic in one line: layer stacks before prim paths dropped, layers by their file
+    names, whitespace joined."""
+    text = _INSTANTIATING.sub("", _LAYER_IDS.sub("", str(commentary)))
+    text = _LAYER_PATH.sub(lambda m: f"@{os.path.basename(m.group(1))}@", text)
+    text = " ".join(text.replace(":\n", ": ").split())
+    return text if len(text) <= 300 else text[:297] + "..."
+
+
+@contextlib.contextmanager
+def pxr_diagnostics(name: str, doing: str):
+    """Within the block, pxr's warnings and errors (which it prints on stderr otherwise, many lines
+    each) are collected by a ``UsdUtils.CoalescingDiagnosticDelegate``; on leaving it a composition
+    cycle is a MeshError naming the prims, and anything else reported is one DataLossWarning
+    (``doing``: "reading", "writing"; ``name`` starts the messages unless empty).  A delegate sees
+    every thread's diagnostics: one block at a time in the process, and a block inside another
+    leaves them to the outer one."""
+    if getattr(_DIAGNOSING, "active", False):
+        yield
+        return
+    from pxr import UsdUtils
+
+    with _DIAGNOSTICS_LOCK:
+        _DIAGNOSING.active = True
+        delegate = UsdUtils.CoalescingDiagnosticDelegate()
+        try:
+            yield
+            found = delegate.TakeUncoalescedDiagnostics()
+        finally:
+            delegate = None          # unregistered when destroyed: pxr prints on stderr again
+            _DIAGNOSING.active = False
+    said = [_tidy(d.commentary) for d in found if "STATUS" not in str(d.diagnosticCodeString)]
+    name = f"{name}: " if name else ""
+    cycles = [t for t in said if "cycle" in t.lower()]       # "Cycle detected", "has cycles" (sublayers)
+    if cycles:
+        more = f" ({len(cycles)} cycles)" if len(cycles) > 1 else ""
+        raise MeshError(f"{name}the USD stage's composition has a cycle{more}: {cycles[0]}")
+    if said:
+        more = f" (and {len(said) - 1} more)" if len(said) > 1 else ""
+        warnings.warn(DataLossWarning(f"{name}the USD library (pxr) reported a problem {doing} the stage: "
+                                      f"{said[0]}{more}"), stacklevel=4)
 
 
 # --------------------------------------------------------------------------
@@ -241,11 +295,13 @@ def _layer_name(layer, name: str) -> str:
 
 
 def _checked_layers(name: str, external_files: bool, Sdf):
-    """The file's layer and every layer it composes, each opened only after its path was checked."""
+    """The file's layer and every layer it composes, each opened only after its path was checked,
+    and whether any layer names a file it composes (itself included)."""
     root = _open_layer(Sdf, name, name, "the file")
     folder = os.path.realpath(os.path.dirname(os.path.abspath(name)))
     layers = {os.path.realpath(root.realPath): root}
     queue = [root]
+    composes = False
     while queue:
         layer = queue.pop()
         try:
@@ -262,6 +318,7 @@ def _checked_layers(name: str, external_files: bool, Sdf):
                                 "files that refer to other files are not accepted here")
             if kind == "asset":
                 continue
+            composes = True
             anchored = _inside(name, folder, layer, kind, where, path)
             real = os.path.realpath(anchored)
             if real in layers:
@@ -271,13 +328,15 @@ def _checked_layers(name: str, external_files: bool, Sdf):
             dep = _open_layer(Sdf, anchored, name, f"the {kind} @{path}@")
             layers[real] = dep
             queue.append(dep)
-    return root, list(layers.values())
+    return root, list(layers.values()), composes
 
 
 def open_stage(name: str, external_files: bool):
-    """The composed stage of the file, its root layer and every layer checked and opened for it."""
+    """The composed stage of the file, its root layer, every layer checked and opened for it, and
+    whether the stage composes any file (a layer referring to itself does: its text alone, opened
+    elsewhere, no longer finds what it refers to)."""
     Usd, _, Sdf, *_ = pxr_modules()
-    root, layers = _checked_layers(name, external_files, Sdf)
+    root, layers, composes = _checked_layers(name, external_files, Sdf)
     try:
         stage = Usd.Stage.Open(root, Usd.Stage.LoadAll)
     except Exception as exc:
@@ -288,4 +347,4 @@ def open_stage(name: str, external_files: bool):
     for used in stage.GetUsedLayers():   # composition opened only what was checked (the session layer aside)
         if not used.anonymous and os.path.realpath(used.realPath) not in checked:
             raise MeshError(f"{name}: composing the stage opened {used.identifier!r}, which was not checked")
-    return stage, root, layers
+    return stage, root, layers, composes

@@ -349,9 +349,11 @@ class Mesh:
 
     @property
     def diagonal(self) -> float:
-        """Length of the bounding-box diagonal."""
+        """Length of the bounding-box diagonal (inf only where it exceeds the largest double)."""
         lo, hi = self.bounding_box
-        return float(np.linalg.norm(hi - lo))
+        with np.errstate(over="ignore"):    # ±1e308 both signs: the diagonal is inf, not an error
+            d = hi - lo
+            return float(np.hypot(np.hypot(d[0], d[1]), d[2]))      # no square: 1e-300 .. 1e300 alike
 
     def face_count_by_size(self) -> dict[int, int]:
         sizes, counts = np.unique(self.face_sizes, return_counts=True)
@@ -359,7 +361,7 @@ class Mesh:
 
     def diagnostics(self, *, rel_area_tol: float = 1e-12) -> Diagnostics:
         """Report legal but suspicious properties (see :class:`Diagnostics`)."""
-        from ..geometry.measures import face_vector_areas  # the one upward import (see docs/architecture.md)
+        from ..geometry.measures import face_vector_areas, pow2_exponent  # the one upward import (architecture.md)
 
         t = self._topology
         d = Diagnostics()
@@ -380,8 +382,11 @@ class Mesh:
         if dup.size:
             d.examples["duplicate_faces"] = int(dup[0])
         if self.n_faces:
-            area = np.linalg.norm(face_vector_areas(self), axis=1)
-            tol = rel_area_tol * max(self.diagonal, np.finfo(float).tiny) ** 2
+            k = pow2_exponent(self._vertices)     # areas of extreme coordinates on an exact power-of-two copy
+            V = np.ldexp(self._vertices, -k) if k else self._vertices
+            area = np.linalg.norm(face_vector_areas(self, V), axis=1)
+            ext = V.max(axis=0) - V.min(axis=0)
+            tol = rel_area_tol * max(float(np.sqrt(ext @ ext)), np.finfo(float).tiny) ** 2
             z = np.flatnonzero(area <= tol)
             d.zero_area_faces = int(z.size)
             if z.size:

@@ -19,7 +19,7 @@ farthest-reaching dab alone does, however many dabs it has, and more dabs refine
 instead of compounding it (a stroke of one dab is that dab; many dabs at one place are one dab).
 A dab position that is not finite is never taken (the vertex stays).  Work per dab is the dab's
 own: nothing proportional to the mesh but the stroke's sums, allocated once per stroke; the brush
-is built again on the new shape once per stroke (:meth:`Sculptor.ready`).
+is built again on the new shape once per stroke (:meth:`Sculptor.build`).
 """
 
 from __future__ import annotations
@@ -84,26 +84,34 @@ class Sculptor:
         """A stroke begins or ends: the next enhancement dab starts a new blend."""
         self.blend = None
 
-    def brush_for(self, at, version: int, n: int, weights, *, inflate: bool, blend: bool, radius: float,
-                  lam: float, strength: float):
-        """The brush of the next dabs, set to ``radius`` and ``lam`` (inflate: ``strength``) and
-        ``weights``; for an enhancement stroke (``blend``) :attr:`blend` is the open blend if nothing
-        else moved the shape since its last dab, else a new one.  ``at()``: the current positions as a
-        mesh, for a brush built anew."""
+    def forget(self) -> None:
+        """Drop the brush and the blend (the sharp edges they keep changed): built anew at the next dab."""
+        self.brush = self.key = self.blend = None
+
+    def brush_for(self, at, version: int, n: int, weights, features, *, inflate: bool, blend: bool,
+                  radius: float, lam: float, strength: float):
+        """The brush of the next dabs, set to ``radius`` and ``lam`` (inflate: ``strength``) and the
+        weights ``weights()`` gives; for an enhancement stroke (``blend``) :attr:`blend` is the open
+        blend if nothing else moved the shape since its last dab, else a new one.  A brush built anew
+        is built on ``at()`` (the current positions as a mesh) with ``features(inflate)`` (the sharp
+        edges it keeps, as keyword arguments; called before ``weights()``)."""
         from ..sculpt import InflateBrush
 
         if not (blend and not inflate and self.blend is not None and self.blend.version == version):
             self.blend = None
             if not inflate:
                 self.last = (radius, lam)
-                self.ready(at, version, weights)
+                if self.brush is None or self.key != (version, False):
+                    self.brush, self.key = self.build(at(), weights(), features(False)), (version, False)
             elif self.brush is None or self.key != (version, True):
-                self.brush = InflateBrush(at(), radius=radius, strength=strength, weights=weights, undo_limit=0)
+                kw = features(True)
+                self.brush = InflateBrush(at(), radius=radius, strength=strength, weights=weights(), undo_limit=0,
+                                          **kw)
                 self.key = (version, True)
             if blend and not inflate:
                 self.blend = StrokeBlend(self.brush, n, version)
         b = self.brush
-        b.set_weights(weights)      # painted since the brush was built: no rebuild for that
+        b.set_weights(weights())      # painted since the brush was built: no rebuild for that
         b.radius = radius
         if inflate:
             b.strength = strength
@@ -128,16 +136,10 @@ class Sculptor:
         elif self.key is not None:
             self.key = (version, self.key[1])
 
-    def ready(self, at, version: int, weights) -> None:
-        """Build the enhancement brush on the current positions unless it holds them (a blend never
-        commits: after a stroke that moved the surface it is built again)."""
-        if self.brush is None or self.key != (version, False):
-            self.brush = self.build(at(), weights)
-            self.key = (version, False)
-
-    def build(self, mesh, weights):
-        """The enhancement brush on ``mesh`` at the last radius and λ (undo_limit=0: the session keeps
-        the history; the brush keeps none of its own)."""
+    def build(self, mesh, weights, features):
+        """The enhancement brush on ``mesh`` at the last radius and λ with the sharp edges ``features``
+        (keyword arguments; undo_limit=0: the session keeps the history, the brush none of its own)."""
         from ..sculpt import Brush
 
-        return Brush(mesh, radius=self.last[0], lam=self.last[1], falloff="smooth", weights=weights, undo_limit=0)
+        return Brush(mesh, radius=self.last[0], lam=self.last[1], falloff="smooth", weights=weights, undo_limit=0,
+                     **features)

@@ -83,6 +83,8 @@ class Hub:
         old = getattr(self, "session", None)
         if old is not None and old is not session:
             old.stop_family()           # one family solve at a time: the replaced session's ends
+        if old is not None and old is not session:     # a preference, as the family's options: kept
+            session.set_features(old.features["on"], old.features["angle"])
         self.session = session
         if self.front is not None and session.front is None:
             with contextlib.suppress(ParameterError):   # along this model's up axis: its default front
@@ -118,7 +120,7 @@ class Hub:
                  "formats": _extensions(), **self.orientation()},
                 frame(b"TRI0", self.tris, "<u4"), frame(b"EDG0", self.edges, "<u4"),
                 frame(b"BAS0", s.input_vertices, "<f4"), frame(b"POS0", self.shown(), "<f4"),
-                frame(b"WGT0", s.weights, "<f4"), self.state()]
+                frame(b"WGT0", s.weights, "<f4"), *self.sharp_frames(), self.state()]
 
     def snapshot(self) -> list:
         """The current positions, weights and state (a tab that fell behind gets this instead)."""
@@ -153,6 +155,7 @@ class Hub:
     def solve(self) -> None:
         self.stale = False
         self.session.solve_family(self.lams, **self.options)
+        self.follow_sharp()
         if self.watcher is None or self.watcher.done():     # one watcher follows whichever solve is current
             self.watcher = asyncio.create_task(_watch_family(self))
 
@@ -162,6 +165,28 @@ class Hub:
         self.stale = True
         if self.lam != 0 and not self.session.in_stroke:
             self.solve()
+
+    sharp_sent = None       # the sharp edges last sent to the tabs (:meth:`sharp_frames`)
+
+    def sharp_frames(self) -> list:
+        """The "Keep sharp edges" setting and the sharp edges it keeps at the current shape (``SHP0``: vertex
+        pairs; none when it is off), which the page draws as lines on the shape shown."""
+        s = self.session
+        pairs = s.sharp_edges()
+        self.sharp_sent = pairs
+        return [{"type": "features", **s.features, "marked_count": s.marked_count, "count": len(pairs)},
+                frame(b"SHP0", pairs, "<u4")]
+
+    def follow_sharp(self) -> None:
+        """Send every tab the sharp edges again when they changed since last sent (the family was solved
+        from a shape whose dihedral angles differ)."""
+        if not self.session.features["on"] and (self.sharp_sent is None or not len(self.sharp_sent)):
+            return
+        sent = self.sharp_sent
+        out = self.sharp_frames()
+        if sent is None or not np.array_equal(sent, self.sharp_sent):
+            for box in list(self.sockets.values()):
+                box.put(*out)
 
     def close_stroke(self) -> None:
         """End a stroke left open (its edits become one undo step)."""
@@ -328,6 +353,15 @@ async def _on_apply(hub: Hub, m: dict) -> list:
     return [frame(b"POS0", hub.session.vertices, "<f4"), hub.state()]
 
 
+async def _on_features(hub: Hub, m: dict) -> list:
+    s = hub.session
+    changed = await _in_thread(lambda: s.set_features(m["on"], m["angle"], m["marked"]))
+    out = hub.sharp_frames()
+    if changed:               # the family with (or without) the sharp edges; the preview follows when solved
+        hub.solve()
+    return [*out, hub.state()]
+
+
 async def _on_undo(hub: Hub, m: dict, *, redo: bool = False) -> list:
     s = hub.session
     (s.redo if redo else s.undo)()
@@ -345,7 +379,8 @@ async def _on_front(hub: Hub, m: dict) -> list:
 
 HANDLERS = {"lam": _on_lam, "field": _on_field, "options": _on_options, "solve": _on_solve,
             "begin": _on_begin, "end": _on_end, "paint": _on_paint, "dab": _on_dab, "apply": _on_apply,
-            "undo": _on_undo, "redo": functools.partial(_on_undo, redo=True), "front": _on_front}
+            "undo": _on_undo, "redo": functools.partial(_on_undo, redo=True), "front": _on_front,
+            "features": _on_features}
 assert HANDLERS.keys() == protocol.MESSAGES.keys()
 
 

@@ -33,6 +33,8 @@ front    axis ("+x", "-x", "+y", "-y", "+z", "-z", or     the axis the model fac
          null: the file's own)                            plane, downloads)
 undo     —                                                take back the last step
 redo     —                                                do it again
+features on (flag), angle (0..180°, default 30),          keep sharp edges in the family and the
+         marked (flag: the file's marked edges too)       brushes (not an edit), drawn as lines
 ======== ================================================ =========================================
 """
 
@@ -122,6 +124,8 @@ MESSAGES: dict[str, dict[str, Field]] = {
     "front": {"axis": Field("choice", choices=("+x", "-x", "+y", "-y", "+z", "-z"), nullable=True)},
     "undo": {},
     "redo": {},
+    "features": {"on": Field("flag"), "angle": Field("number", 0.0, 180.0, default=30.0),
+                 "marked": Field("flag", default=False)},
 }
 
 

@@ -32,6 +32,7 @@ from ..errors import ParameterError
 from ..mesh import Mesh
 from .blend import Sculptor
 from .history import History
+from .sharp import SharpFeatures
 
 __all__ = ["StudioSession", "FamilyStatus", "smooth_falloff"]
 
@@ -57,7 +58,7 @@ class FamilyStatus:
     error: str | None = None
 
 
-class StudioSession:
+class StudioSession(SharpFeatures):
     """The editable state of one studio page (see the module docstring for the thread model).
 
     Parameters
@@ -237,7 +238,7 @@ class StudioSession:
     def set_weights(self, weights) -> None:
         """Replace every weight (one undo step), e.g. by weights read from a file: one number per
         vertex in [0, 1]."""
-        from ..flow.options import resolve_weights
+        from ..mesh.weights import resolve_weights
 
         if weights is None:
             raise ParameterError("weights must be one number per vertex in [0, 1], got None")
@@ -291,7 +292,8 @@ class StudioSession:
         with self._lock:
             sc = self._sculpt
             centres = self._centres(c, r, mirror)
-            sc.brush_for(self._shaped, self._shape_version, self._V.shape[0], self._w.copy(), inflate=bool(inflate),
+            sc.brush_for(self._shaped, self._shape_version, self._V.shape[0],
+                         lambda: self._dab_weights(self._w.copy()), self._brush_features, inflate=bool(inflate),
                          blend=self._history.grouping or len(centres) > 1, radius=r, lam=lam, strength=strength)
             moved = []
             with self._grouped("dab", len(centres)):
@@ -313,8 +315,8 @@ class StudioSession:
             key, version = self._sculpt.key, self._shape_version
             if key is None or key[1] or key[0] == version or self._history.grouping:
                 return
-            mesh, w = self._shaped(), self._w.copy()
-        brush = self._sculpt.build(mesh, w)
+            mesh, w, sharp = self._shaped(), self._w.copy(), self._brush_features(False)
+        brush = self._sculpt.build(mesh, w, sharp)
         with self._lock:
             if self._sculpt.key == key and self._shape_version == version and not self._history.grouping:
                 self._sculpt.brush, self._sculpt.key = brush, (version, False)
@@ -433,6 +435,7 @@ class StudioSession:
             mesh = self._base.with_vertices(self._V.copy())
             w = self._w.copy()
             shape = self._shape_version
+            flow_options = {**self.feature_options(), **flow_options}     # sharp edges kept (studio.sharp)
             self._status = FamilyStatus("running", 0, int(lam_arr.size), lam_arr.tolist())
 
         def progress(done, total):

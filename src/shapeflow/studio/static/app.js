@@ -6,6 +6,7 @@ import { onFrame, onText } from "./net.js";
 import * as panel from "./panel.js";
 import * as tools from "./tools.js";
 import * as view from "./view.js";
+import "./sharp.js";      // the "Keep sharp edges" control and the sharp edges drawn
 
 onText("mesh", (m) => { view.newMesh(m); panel.newMesh(m); });
 onText("state", (m) => panel.state(m));
