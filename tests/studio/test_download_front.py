@@ -100,7 +100,20 @@ def test_the_session_and_server_front():
 @pytest.mark.parametrize("args, match", [
     (["--front", "+y"], "front"),                                     # Spot is y-up
     (["--front", "sideways"], "--front"),
+    (["--front", "-z", "--max-upload", "0"], "--max-upload"),          # -z is --front's value: the next error
 ])
 def test_the_command_lines_front_is_checked_before_it_serves(capsys, args, match):
     code, _, err = run_cli(["studio", "example:spot", "--no-browser", *args], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1 and match in err, err
+
+
+def test_a_downloaded_ply_and_obj_keep_the_front_chosen(server):
+    """PLY and OBJ keep metadata["front"] as a comment (read here with plyfile and as text)."""
+    import io
+
+    plyfile = pytest.importorskip("plyfile")
+    server.session.front = "+x"
+    ply = plyfile.PlyData.read(io.BytesIO(get(server, "download/spot-studio.ply")[1]))
+    assert "shapeflow front +x" in ply.comments
+    obj = get(server, "download/spot-studio.obj")[1].decode()
+    assert "# shapeflow front +x" in obj.splitlines()

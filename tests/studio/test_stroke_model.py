@@ -163,3 +163,26 @@ def test_a_dab_that_would_leave_a_non_finite_position_keeps_the_vertex():
 
     d = finite_preview(Overflowing(), [0.0, 0.0, 0.0])
     np.testing.assert_array_equal(d.positions, [[0.5, 0.0, 0.0], [1.0, 1.0, 1.0], [2.0, 2.0, 2.0]])
+
+
+def test_a_stroke_keeps_the_sharp_edges_its_dabs_keep():
+    """With "Keep sharp edges" every dab keeps a box's flat sides flat; a blend of such dabs' positions
+    (weighted means of points of one plane) keeps them flat too — and the same dabs without it bend them."""
+    from test_session_sharp import HALF, box_parts, flatness
+
+    box, sides = box_parts()
+    diag = float(np.linalg.norm(2 * HALF))
+    top = box.vertices[sides[5]]
+    path = top[np.argsort(top @ (top[-1] - top[0]))][:: max(1, len(top) // 8)]
+    out = {}
+    for on in (False, True):
+        s = StudioSession(box)
+        s.set_features(on, 30.0)
+        s.begin_stroke()
+        for c in path:
+            s.dab(c, radius=1.2, lam=-300.0)
+        assert s.end_stroke()
+        out[on] = s.vertices
+    assert np.isfinite(out[True]).all() and np.abs(out[True] - box.vertices).max() > 1e-2 * diag
+    assert flatness(out[True], sides) <= 1e-9 * diag
+    assert flatness(out[False], sides) > 1e-3 * diag
