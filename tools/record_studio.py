@@ -1,7 +1,7 @@
 """Record the studio in headless Chromium: a short screen recording (an animated WebP) and a still.
 
     python tools/record_studio.py [--out docs/img/studio.webp] [--still docs/img/studio.png]
-                                  [--levels 1] [--width 800]
+                                  [--levels 1] [--width 1280] [--quality 80]
 
 Spot subdivided ``--levels`` times in the studio, the whole page at 1280×800.  The recording: the
 page opens on Spot's front; the λ slider walks the family from smoothing (+60) to enhancement with
@@ -10,7 +10,8 @@ mirror image erases the other; the enhancement leaves the horns as they were; at
 inflate stroke on a cheek (mirrored) applies the preview and acts on it, the slider back at 0;
 Ctrl+Z twice takes back the stroke and the applied preview; the before/after split; the
 turntable.  The still: the page with the horns erased, the preview at λ = −120 and both brush
-circles.  Each frame is a screenshot (WebGL on SwiftShader, no GPU needed), written with Pillow.
+circles.  Each frame is a screenshot (WebGL on SwiftShader, no GPU needed), written with Pillow; at the
+default width (the page's own, no scaling) the panel's 12–13 px text stays readable.
 Needs the ``studio`` extra, selenium, Pillow, chromium and chromedriver.
 """
 
@@ -36,8 +37,8 @@ SIZE = (1280, 800)
 class Film:
     """Screenshots of the page, each held for a given time."""
 
-    def __init__(self, page, width: int):
-        self.page, self.width = page, width
+    def __init__(self, page, width: int, quality: int):
+        self.page, self.width, self.quality = page, width, quality
         self.frames, self.durations = [], []
 
     def shot(self, ms: int = 110) -> None:
@@ -47,12 +48,14 @@ class Film:
         n = self.page.execute_script("window.studio.redraw(); return window.studio.frames")
         wait(self.page, f"return window.studio.frames > {n}")
         im = Image.open(io.BytesIO(self.page.get_screenshot_as_png())).convert("RGB")
-        self.frames.append(im.resize((self.width, round(im.height * self.width / im.width)), Image.LANCZOS))
+        if im.width != self.width:
+            im = im.resize((self.width, round(im.height * self.width / im.width)), Image.LANCZOS)
+        self.frames.append(im)
         self.durations.append(ms)
 
     def save(self, path: Path) -> None:
         self.frames[0].save(path, save_all=True, append_images=self.frames[1:], duration=self.durations,
-                            loop=0, quality=70, method=6)
+                            loop=0, quality=self.quality, method=6)
 
 
 def offset(page, p) -> tuple[int, int]:
@@ -108,7 +111,8 @@ def main() -> int:  # long: the recording's script, scene by scene
     ap.add_argument("--out", type=Path, default=ROOT / "docs" / "img" / "studio.webp")
     ap.add_argument("--still", type=Path, default=ROOT / "docs" / "img" / "studio.png")
     ap.add_argument("--levels", type=int, default=1)
-    ap.add_argument("--width", type=int, default=800)
+    ap.add_argument("--width", type=int, default=SIZE[0], help="of the recording (default: the page's, 1280)")
+    ap.add_argument("--quality", type=int, default=80, help="WebP quality of the recording, 0-100")
     a = ap.parse_args()
     from PIL import Image
     from selenium.webdriver.common.keys import Keys
@@ -116,7 +120,7 @@ def main() -> int:  # long: the recording's script, scene by scene
     spot = sf.load_example("spot")
     mesh = sf.subdivide(spot, a.levels) if a.levels else spot
     with StudioServer(mesh, name="spot") as srv, chromium_page(srv.url, size=SIZE) as page:
-        film = Film(page, a.width)
+        film = Film(page, a.width, a.quality)
         V = srv.session.vertices
         film.shot(900)                                                         # the front, as opened
         set_control(page, "colours", "curvature")
@@ -126,14 +130,14 @@ def main() -> int:  # long: the recording's script, scene by scene
         set_control(page, "colours", "weights")
         set_control(page, "mode", "erase")
         page.find_element("tag name", "body").send_keys("x")                  # Mirror X
-        for _ in range(5):                                                     # "[": a smaller brush
+        for _ in range(7):                                                     # "[": a smaller brush
             page.find_element("tag name", "body").send_keys("[")
-        horn = V[(V[:, 1] > 0.72) & (V[:, 0] > 0.05)]                          # one horn, base to tip
+        horn = V[(V[:, 1] > 0.8) & (V[:, 0] > 0.05) & (V[:, 0] < 0.3)]          # one horn (not the ear), base to tip
         horn = horn[np.argsort(horn[:, 1])]
         path = nearest_on_screen(page, V, horn[np.linspace(0, len(horn) - 1, 10).astype(int)])
         drag(page, film, path)
         film.shot(700)
-        for _ in range(5):                                                     # "]": back to the default
+        for _ in range(7):                                                     # "]": back to the default
             page.find_element("tag name", "body").send_keys("]")
         walk(page, film, range(-20, -161, -20))                                # the horns keep their shape
         film.shot(500)

@@ -168,6 +168,25 @@ def test_painting_at_a_previewed_lambda_keeps_the_preview_and_it_follows(page, s
     undo_to_start(page, server, start)
 
 
+def test_the_page_says_what_a_format_drops_before_and_after_downloading(page, server):
+    """Spot's UVs and weights: OFF keeps neither (the note under the menu says so as the format is
+    chosen, and the blue banner after the download), PLY keeps both."""
+    idle(page, server)
+    set_control(page, "format", "off")
+    wait(page, "return (window.studio.formatNote || '').startsWith('⚠')")
+    note = page.find_element("id", "format-note").text
+    assert "OFF" in note and "'weight'" in note and "'uv'" in note
+    page.find_element("id", "download").click()
+    wait(page, "return (window.studio.downloadLosses || []).length === 1 && window.studio.pending === 0")
+    info = page.find_element("id", "info")
+    assert info.is_displayed() and "spot-studio.off downloaded" in info.text and "'weight'" in info.text
+    assert not page.find_element("id", "error").is_displayed()
+    set_control(page, "format", "ply")
+    wait(page, "return window.studio.formatNote === 'PLY keeps all this mesh holds'")
+    page.find_element("id", "info-close").click()
+    assert not info.is_displayed()
+
+
 def test_opening_a_file_with_unsaved_changes_asks_first(page, server, tmp_path):
     from meshgen import cube_sphere
 
@@ -193,3 +212,4 @@ def test_opening_a_file_with_unsaved_changes_asks_first(page, server, tmp_path):
     page.find_element("id", "open-file").send_keys(str(path))           # nothing unsaved: no question
     wait(page, "return window.studio.name === 'other.off' && window.studio.ready")
     assert server.session is not s and not server.session.modified
+

@@ -88,7 +88,9 @@ def test_the_label_keeps_its_place_and_the_typed_value_follows_the_slider(page, 
     np.testing.assert_array_equal(shown(page), server.session.shape_at(-171.0).astype(np.float32))
     type_into(page, "lam-num", -900, enter=True)                                   # outside: the end, and why
     wait(page, "return window.studio.pending === 0 && window.studio.lam === -240")
-    assert "outside the family" in page.find_element("id", "error").text
+    info, error = page.find_element("id", "info"), page.find_element("id", "error")
+    assert "outside the family" in info.text and not error.is_displayed()        # information, not an error
+    assert info.value_of_css_property("background-color") != error.value_of_css_property("background-color")
     set_control(page, "lam", 0, event="input")
     wait(page, "return window.studio.pending === 0 && window.studio.lam === 0")
 

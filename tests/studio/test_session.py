@@ -9,6 +9,7 @@ import time
 import numpy as np
 import pytest
 from meshgen import cube_sphere
+from stroke_reference import blended
 
 import shapeflow as sf
 from shapeflow.studio import StudioSession
@@ -45,7 +46,7 @@ def test_dabs_use_the_painted_weights(mesh):
     s.paint(c, 0.5, value=0.0)                       # zero at the centre, rising towards the rim
     w = s.weights
     moved = s.dab(c, radius=0.7, lam=-40.0)
-    ref = sf.Brush(mesh, radius=0.7, lam=-40.0, weights=w)
+    ref = sf.Brush(mesh, radius=0.7, lam=-40.0, weights=w, falloff="smooth")     # one dab: the brush's own
     ref_moved = ref.dab(c)
     assert set(moved.tolist()) == set(np.asarray(ref_moved).tolist())
     np.testing.assert_array_equal(s.vertices, ref.vertices)
@@ -124,14 +125,11 @@ def test_history_is_bounded_in_bytes_files_and_threads(mesh, tmp_path):
 def test_a_stroke_is_one_step_holding_the_union_of_its_dabs(mesh):
     s = StudioSession(mesh)
     path = [mesh.vertices[5] + t * (mesh.vertices[40] - mesh.vertices[5]) for t in np.linspace(0.0, 1.0, 6)]
-    ref = sf.Brush(mesh, radius=0.5, lam=-30.0)             # the same dabs on the library's brush
     s.begin_stroke()
     moved = [s.dab(c, radius=0.5, lam=-30.0) for c in path]
-    for c in path:
-        ref.dab(c)
     assert s.in_stroke and s.can_undo and s.modified
     assert s.end_stroke() and not s.in_stroke and not s.end_stroke()
-    np.testing.assert_array_equal(s.vertices, ref.vertices)
+    np.testing.assert_allclose(s.vertices, blended(mesh, path, 0.5, -30.0), rtol=0, atol=1e-14)
     union = np.unique(np.concatenate(moved))
     assert len(union) > max(len(m) for m in moved)           # the dabs touched different vertices
     # one step: the union's indices (int64) and positions before and after (float64 × 3); no weights
@@ -189,14 +187,11 @@ def test_mirrored_dabs_follow_the_view_rule_and_are_one_step():
     np.testing.assert_allclose(t.mirrored([0.1, 0.2, cz + 0.25]), [0.1, 0.2, cz - 0.25], atol=1e-15)
     c = spot.vertices[np.argmax(spot.vertices[:, 0])]          # far from the plane
     m = c * [-1.0, 1.0, 1.0] + [2 * cx, 0.0, 0.0]
-    ref = sf.Brush(spot, radius=0.2, lam=-40.0)
-    ref.dab(c)
-    ref.dab(m)
     s.dab(c, radius=0.2, lam=-40.0, mirror=True)
-    np.testing.assert_array_equal(s.vertices, ref.vertices)
+    np.testing.assert_allclose(s.vertices, blended(spot, [c, m], 0.2, -40.0), rtol=0, atol=1e-14)
     assert s.undo() and np.array_equal(s.vertices, spot.vertices) and not s.can_undo
     on_plane = spot.vertices[np.argmin(np.abs(spot.vertices[:, 0] - cx) + 10 * (spot.vertices[:, 1] < 0.2))]
-    single = sf.Brush(spot, radius=0.2, lam=-40.0)
+    single = sf.Brush(spot, radius=0.2, lam=-40.0, falloff="smooth")
     single.dab(on_plane)
     s.dab(on_plane, radius=0.2, lam=-40.0, mirror=True)       # on the plane: one dab, not two
     np.testing.assert_array_equal(s.vertices, single.vertices)
@@ -239,14 +234,15 @@ def test_colour_fields_on_a_sphere():
 
 
 def test_painting_between_dabs_reuses_the_brush_with_the_new_weights(mesh):
+    """Lone dabs (no stroke open) apply one after the other, on the library's brush kept between them."""
     s = StudioSession(mesh)
     c = mesh.vertices[5]
-    ref = sf.Brush(mesh, radius=0.7, lam=-40.0)
+    ref = sf.Brush(mesh, radius=0.7, lam=-40.0, falloff="smooth")
     s.dab(c, radius=0.7, lam=-40.0)
     ref.dab(c)
     s.paint(c, 0.4, value=0.0)
     ref.set_weights(s.weights)
-    s.dab(c + 0.02, radius=0.7, lam=-40.0)
+    s.dab(c + 0.02, radius=0.7, lam=-40.0)               # on the shape the first dab left, the new weights
     ref.dab(c + 0.02)
     np.testing.assert_array_equal(s.vertices, ref.vertices)
     fresh = sf.Brush(sf.Mesh.from_csr(ref.vertices, mesh.face_sizes, mesh.face_indices), radius=0.7, lam=-40.0,
@@ -254,6 +250,40 @@ def test_painting_between_dabs_reuses_the_brush_with_the_new_weights(mesh):
     assert np.array_equal(ref.weights, fresh.weights)
     with pytest.raises(sf.ParameterError, match="weights"):
         ref.set_weights(np.full(mesh.n_vertices, 2.0))
+
+
+def test_the_dabs_of_a_stroke_do_not_compound(mesh):
+    """One implicit step at λ −300 nearly doubles the surface's deviation from the membrane its rim spans;
+    six dabs at one place applied one after the other move it 2^5 = 32 times as far.  In a stroke they
+    blend: six dabs at one place are one dab, and a stroke moves no vertex further than the farthest
+    its dabs move it alone."""
+    c = mesh.vertices[5]
+    one = sf.Brush(mesh, radius=0.6, lam=-300.0, falloff="smooth")
+    one.dab(c)
+    s = StudioSession(mesh)
+    s.begin_stroke()
+    for _ in range(6):
+        s.dab(c, radius=0.6, lam=-300.0)
+    s.end_stroke()
+    np.testing.assert_allclose(s.vertices, one.vertices, rtol=0, atol=1e-14)
+    seq = sf.Brush(mesh, radius=0.6, lam=-300.0, falloff="smooth")
+    for _ in range(6):
+        seq.dab(c)
+    far = lambda V: np.linalg.norm(V - mesh.vertices, axis=1).max()          # noqa: E731
+    assert far(seq.vertices) > 8 * far(one.vertices)                       # what compounding does
+    path = [mesh.vertices[5] + t * (mesh.vertices[40] - mesh.vertices[5]) for t in np.linspace(0.0, 1.0, 8)]
+    alone = []
+    for p in path:
+        b = sf.Brush(mesh, radius=0.6, lam=-300.0, falloff="smooth")
+        b.dab(p)
+        alone.append(np.linalg.norm(b.vertices - mesh.vertices, axis=1))
+    t = StudioSession(mesh)
+    t.begin_stroke()
+    for p in path:
+        t.dab(p, radius=0.6, lam=-300.0)
+    t.end_stroke()
+    moved = np.linalg.norm(t.vertices - mesh.vertices, axis=1)
+    assert moved.max() > 0 and np.all(moved <= np.max(alone, axis=0) + 1e-12)
 
 
 def test_weights_from_a_file_are_one_undo_step(mesh):

@@ -23,6 +23,10 @@ def register(sub) -> None:
                         "repeatable")
     p.add_argument("--max-upload", type=float, default=512, metavar="MIB",
                    help="largest file a page may open, in MiB (default 512)")
+    p.add_argument("--front", choices=["+x", "-x", "+y", "-y", "+z", "-z"], default=None, metavar="AXIS",
+                   help="the axis the model faces, one of +x -x +y -y +z -z (default: the file's own, as the bundled "
+                        "examples carry it, else +z with y up and -y for STL, as 'render'); files opened in the page "
+                        "that name none face it too; the page's View section changes it")
     p.add_argument("--no-browser", action="store_true", help="print the address, do not open a browser")
     p.set_defaults(func=run)
 
@@ -37,7 +41,8 @@ def run(args) -> int:
     mesh = load_mesh_arg(args.mesh)
     mib = params.number("--max-upload", args.max_upload, lo=0.001)
     server = StudioServer(mesh, host=args.host, port=args.port, max_upload=int(mib * 2**20),
-                          name=os.path.basename(args.mesh).removeprefix("example:"), allow_hosts=args.allow_host)
+                          name=os.path.basename(args.mesh).removeprefix("example:"), allow_hosts=args.allow_host,
+                          front=args.front)
     eprint(f"shapeflow studio: {mesh.n_vertices:,} vertices at {server.url} (Ctrl-C ends it)")
     if not server.loopback:
         eprint(f"shapeflow studio: warning: listening on {args.host}: anyone who can reach this machine and has "

@@ -18,6 +18,7 @@ The editing model (docs/studio.md, "Editing at any slider position"):
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import functools
 
 import numpy as np
@@ -62,8 +63,9 @@ def _views(session: StudioSession) -> dict:
 class Hub:
     """The session, the family's options and the sockets of the open tabs."""
 
-    def __init__(self, session: StudioSession, lams, name: str = ""):
+    def __init__(self, session: StudioSession, lams, name: str = "", front: str | None = None):
         self.lams = list(lams)
+        self.front = front           # the front chosen (--front, the page): for files that name none
         self.options: dict = {}
         self.sockets: dict = {}      # WebSocketResponse -> its Outbox
         self.lock = asyncio.Lock()
@@ -84,6 +86,9 @@ class Hub:
         if old is not None and old is not session:     # a preference, as the family's options: kept
             session.set_features(old.features["on"], old.features["angle"])
         self.session = session
+        if self.front is not None and session.front is None:
+            with contextlib.suppress(ParameterError):   # along this model's up axis: its default front
+                session.front = self.front
         mesh = session.base             # what the page draws: the welded mesh
         self.tris = fan_triangles(mesh)
         self.edges = mesh.topology.edges
@@ -97,13 +102,22 @@ class Hub:
         self.stroke_owner = None
 
     # --- what the tabs see ----------------------------------------------
+    def orientation(self) -> dict:
+        """The model's frame: the axis it faces (``front``: None for the view rule's default, which is
+        ``default_front``), its axes, the named views and the mirror plane."""
+        from ..rendering.style import DEFAULT_FRONT
+
+        s = self.session
+        right, up, front = (a.tolist() for a in s.axes)
+        return {"front": s.front, "default_front": DEFAULT_FRONT[s.up_axis], "up_axis": s.up_axis,
+                "axes": {"right": right, "up": up, "front": front}, "views": self.views,
+                "mirror": {"origin": s.mirror_origin.tolist(), "normal": right}}
+
     def mesh_frames(self) -> list:
         """Everything a page needs to draw the session from scratch."""
         s = self.session
-        right, up, front = (a.tolist() for a in s.axes)
         return [{"type": "mesh", "n_vertices": self.n_vertices, "n_faces": self.n_faces, "name": self.name,
-                 "formats": _extensions(), "axes": {"right": right, "up": up, "front": front},
-                 "views": self.views, "mirror": {"origin": s.mirror_origin.tolist(), "normal": right}},
+                 "formats": _extensions(), **self.orientation()},
                 frame(b"TRI0", self.tris, "<u4"), frame(b"EDG0", self.edges, "<u4"),
                 frame(b"BAS0", s.input_vertices, "<f4"), frame(b"POS0", self.shown(), "<f4"),
                 frame(b"WGT0", s.weights, "<f4"), *self.sharp_frames(), self.state()]
@@ -293,6 +307,7 @@ async def _on_begin(hub: Hub, m: dict) -> list:
 
 async def _on_end(hub: Hub, m: dict) -> list:
     hub.close_stroke()
+    await _in_thread(hub.session.ready_brush)      # the next stroke starts at once
     return [hub.state()]
 
 
@@ -354,9 +369,18 @@ async def _on_undo(hub: Hub, m: dict, *, redo: bool = False) -> list:
     return [frame(b"POS0", hub.shown(), "<f4"), frame(b"WGT0", s.weights, "<f4"), hub.state()]
 
 
+async def _on_front(hub: Hub, m: dict) -> list:
+    s = hub.session
+    s.front = m["axis"]                 # ParameterError: along the up axis
+    hub.front = m["axis"]
+    hub.views = _views(s) if hub.n_vertices else {}
+    return [{"type": "orientation", **hub.orientation()}, hub.state()]
+
+
 HANDLERS = {"lam": _on_lam, "field": _on_field, "options": _on_options, "solve": _on_solve,
             "begin": _on_begin, "end": _on_end, "paint": _on_paint, "dab": _on_dab, "apply": _on_apply,
-            "undo": _on_undo, "redo": functools.partial(_on_undo, redo=True), "features": _on_features}
+            "undo": _on_undo, "redo": functools.partial(_on_undo, redo=True), "front": _on_front,
+            "features": _on_features}
 assert HANDLERS.keys() == protocol.MESSAGES.keys()
 
 

@@ -29,6 +29,8 @@ paint    center (3 numbers), radius (> 0), value (0..1),  paint weights (one und
 dab      center, radius, lam (λ of the brush), inflate,   one dab of the enhancement or inflate
          strength (inflate: −1..1), mirror (flag)         brush (at λ ≠ 0: the preview applied first)
 apply    value (λ)                                        the preview at λ becomes the shape
+front    axis ("+x", "-x", "+y", "-y", "+z", "-z", or     the axis the model faces (views, mirror
+         null: the file's own)                            plane, downloads)
 undo     —                                                take back the last step
 redo     —                                                do it again
 features on (flag), angle (0..180°, default 30),          keep sharp edges in the family and the
@@ -119,6 +121,7 @@ MESSAGES: dict[str, dict[str, Field]] = {
             "inflate": Field("flag", default=False), "strength": Field("number", -1.0, 1.0, default=0.05),
             "mirror": Field("flag", default=False)},
     "apply": {"value": LAM},
+    "front": {"axis": Field("choice", choices=("+x", "-x", "+y", "-y", "+z", "-z"), nullable=True)},
     "undo": {},
     "redo": {},
     "features": {"on": Field("flag"), "angle": Field("number", 0.0, 180.0, default=30.0),

@@ -83,12 +83,13 @@ class StudioServer:
     ``outbox_limit`` and ``stall_seconds``: as for :func:`~shapeflow.studio.server.make_app`;
     ``keepalive``: seconds a connection may stay without a whole request (a connection that sends
     part of a request and stops, slowloris, is closed then; at most :func:`connection_cap`
-    connections are open at once).
+    connections are open at once).  ``front``: the axis the model faces (``+x`` … ``-z``), over what
+    its ``metadata["front"]`` says; files opened in the page that name none face it too.
     """
 
     def __init__(self, mesh_or_session, *, host: str = "127.0.0.1", port: int = 0, lams=DEFAULT_LAMS,
                  solve: bool = True, max_upload: int = MAX_UPLOAD, name: str = "", token: str | None = None,
-                 allow_hosts=(), keepalive: float = KEEPALIVE, **queue):
+                 allow_hosts=(), keepalive: float = KEEPALIVE, front: str | None = None, **queue):
         try:
             from aiohttp import web
         except Exception as exc:   # not installed, or installed and broken
@@ -96,6 +97,8 @@ class StudioServer:
 
         session = mesh_or_session if isinstance(mesh_or_session, StudioSession) else \
             StudioSession(mesh_or_session)
+        if front is not None:
+            session.front = front         # ParameterError: not an axis, or along the model's up axis
         port = params.integer("port", port, lo=0, hi=65535)
         if token is not None and (not isinstance(token, str) or len(token) < 16 or not token.isprintable()):
             raise ParameterError("token must be a string of at least 16 printable characters")
@@ -103,7 +106,7 @@ class StudioServer:
         self._loop.set_exception_handler(_quiet_handler)
         # the family is solved once the server listens (a port in use leaves no task behind)
         self._app = make_app(session, lams=lams, solve=solve, solve_at_start=False, max_upload=max_upload, name=name,
-                             token=token, host=host, port=port, allow_hosts=allow_hosts, **queue)
+                             token=token, host=host, port=port, allow_hosts=allow_hosts, front=front, **queue)
         self._runner = capped_runner(web, self._app, keepalive)
         started = threading.Event()
         failure: list = []
@@ -211,13 +214,16 @@ class StudioServer:
 
 
 def studio(mesh: Mesh | StudioSession, *, port: int = 0, host: str = "127.0.0.1",
-           lams: Sequence[float] = DEFAULT_LAMS, max_upload: int = MAX_UPLOAD, name: str = "") -> StudioServer:
+           lams: Sequence[float] = DEFAULT_LAMS, max_upload: int = MAX_UPLOAD, name: str = "",
+           front: str | None = None) -> StudioServer:
     """Start the studio on ``mesh`` and return its server (``sf.studio(mesh)``); in Jupyter the
     returned object shows the page inline.  ``server.result()`` is the mesh as edited so far,
-    ``server.session`` the :class:`StudioSession` the page edits, ``server.stop()`` ends it.
+    ``server.session`` the :class:`StudioSession` the page edits, ``server.stop()`` ends it;
+    ``front``: the axis the model faces, when its metadata does not say (e.g. ``"-z"`` for Spot read
+    back from a file).
 
     >>> server = sf.studio(sf.load_example("spot"))     # doctest: +SKIP
     >>> server                                           # doctest: +SKIP
     >>> edited = server.result()                         # doctest: +SKIP
     """
-    return StudioServer(mesh, host=host, port=port, lams=lams, max_upload=max_upload, name=name)
+    return StudioServer(mesh, host=host, port=port, lams=lams, max_upload=max_upload, name=name, front=front)

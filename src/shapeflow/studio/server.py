@@ -11,30 +11,34 @@ and ``Origin`` must be the studio's own, and the server's token must come with i
 ``token`` query parameter, the ``X-Shapeflow-Token`` header, or for reading requests the
 page's cookie).  docs/robustness.md states the threat model.
 
-Protocol.  The page sends JSON messages, checked against the table of
+Protocol. The page sends JSON messages, checked against the table of
 :mod:`~shapeflow.studio.protocol` before anything changes; a refused message is answered by an
-``error`` message and the socket stays open; each request is answered to its tab by a ``done``
-(or that ``error``) message carrying the request's ``id``.  The server sends JSON text messages
-(``{"type": ...}``: ``mesh``, ``state``, ``field``, ``done``, ``error``) and binary frames that start with
-a 4-byte tag: ``POS0`` float32 positions (n, 3), ``BAS0`` float32 positions of the input (the
-split view's "before"), ``TRI0`` uint32 triangles (the faces' fans, for drawing), ``EDG0``
-uint32 edge pairs (the real polygon edges, for the wireframe), ``WGT0`` float32 weights (n,),
-``FLD0`` float32 values of a colour field (n,), ``PSUB`` some positions (uint32 count k, k
-uint32 indices, k × 3 float32: what a dab moved).  No frame holds a value that is not finite in
-float32.  A ``mesh`` message starts a new mesh (on connecting, and in every tab when a file is
-opened).  Each tab has its own bounded queue (:mod:`~shapeflow.studio.outbox`).  What the
-messages do, and the editing model, is :mod:`~shapeflow.studio.hub`'s.
+``error`` message and the socket stays open; each request is answered to its tab by a ``done`` (or
+that ``error``) message carrying the request's ``id``. The server sends JSON text messages
+(``{"type": ...}``: ``mesh``, ``state``, ``field``, ``orientation``, ``done``, ``error``) and binary
+frames that start with a 4-byte tag: ``POS0`` float32 positions (n, 3), ``BAS0`` float32 positions
+of the input (the split view's "before"), ``TRI0`` uint32 triangles (the faces' fans, for drawing),
+``EDG0`` uint32 edge pairs (the real polygon edges, for the wireframe), ``WGT0`` float32 weights
+(n,), ``FLD0`` float32 values of a colour field (n,), ``PSUB`` some positions (uint32 count k, k
+uint32 indices, k × 3 float32: what a dab moved). No frame holds a value that is not finite in
+float32. A ``mesh`` message starts a new mesh (on connecting, and in every tab when a file is
+opened). Each tab has its own bounded queue (:mod:`~shapeflow.studio.outbox`). What the messages do,
+and the editing model, is :mod:`~shapeflow.studio.hub`'s.
 
 ``GET /`` is the page, with an import map that gives every script's address with the token the
 page was opened with (a page in another site's frame, e.g. a notebook's, gets no cookie).
 
-``GET /download/NAME.EXT`` returns the current mesh, on the layout of the file opened, in any
-format shapeflow writes; ``POST /open?name=FILE.EXT`` (the file as the body) opens a mesh in
-every tab, ``POST /weights?name=FILE.EXT`` reads weights (a mesh's ``weight`` attribute with the
-same vertex count, or ``.npy``/``.txt``); uploads above ``max_upload`` bytes are refused (413)
-and nothing of them is kept; an upload is read by a child process bounded in time and memory
-(:mod:`~shapeflow.studio.upload`).  The server reads and writes no file of the user's: an
-upload lives in a temporary folder until it is read.
+``GET /download/NAME.EXT`` returns the current mesh, on the layout of the file opened, in any format
+shapeflow writes, with what that format drops of it (the writer's
+:class:`~shapeflow.errors.DataLossWarning` messages) in the header ``X-Shapeflow-Warnings`` (a JSON
+list of strings, ASCII); ``GET /losses/NAME.EXT`` says the same without downloading (JSON
+``{"format": ..., "losses": [...]}``: the writer run on the current mesh into memory);
+``POST /open?name=FILE.EXT`` (the file as the body) opens a mesh in every tab,
+``POST /weights?name=FILE.EXT`` reads weights (a mesh's ``weight`` attribute with the same vertex
+count, or ``.npy``/``.txt``); uploads above ``max_upload`` bytes are refused (413) and nothing of them is
+kept; an upload is read by a child process bounded in time and memory
+(:mod:`~shapeflow.studio.upload`). The server reads and writes no file of the user's: an upload
+lives in a temporary folder until it is read.
 
 Every tab shares the server's session: a second tab sees the same shape, a closed tab loses
 nothing.  The server binds to 127.0.0.1 unless told otherwise.
@@ -44,9 +48,11 @@ from __future__ import annotations
 
 import asyncio
 import functools
+import io
 import json
 import os
 import tempfile
+import threading
 from pathlib import Path
 from urllib.parse import urlencode
 
@@ -63,7 +69,7 @@ from .security import SAFE_HEADERS, Guard, check_name, content_disposition, new_
 from .session import StudioSession
 
 __all__ = ["make_app", "hub_of", "guard_of", "field_scale", "STATIC", "DEFAULT_LAMS", "MAX_MESSAGE",
-           "MAX_UPLOAD"]
+           "MAX_UPLOAD", "WARNINGS_HEADER"]
 
 STATIC = Path(__file__).resolve().parent / "static"
 #: the family the slider walks by default: λ = +60 … −240 in steps of 10 (smoothing and enhancement
@@ -73,6 +79,8 @@ DEFAULT_LAMS = tuple(float(x) for x in np.arange(60.0, -241.0, -10.0))
 MAX_MESSAGE = 1 << 16
 #: the largest file a page may open by default (``--max-upload``), bytes
 MAX_UPLOAD = 512 << 20
+#: the download's header that lists what its format dropped (a JSON list of strings)
+WARNINGS_HEADER = "X-Shapeflow-Warnings"
 
 
 def _web():
@@ -139,8 +147,8 @@ class _Routes:
                     await hub.broadcast(hub.state())
         return ws
 
-    async def download(self, request):
-        from ..io import save
+    def _format(self, request):
+        """The file name a download or losses request names, and its format (400: a bad name, no format)."""
         from ..io.registry import format_for
 
         web, name = self.web, request.match_info["name"]
@@ -148,9 +156,14 @@ class _Routes:
         if why:
             raise web.HTTPBadRequest(text=why)
         try:
-            format_for(name, None)
+            return name, format_for(name, None)
         except ShapeflowError as exc:
             raise web.HTTPBadRequest(text=str(exc)) from None
+
+    async def download(self, request):
+        from ..io import save
+
+        web, (name, _) = self.web, self._format(request)
         hub = self.hub
         async with hub.lock:
             hub.close_stroke()
@@ -160,7 +173,7 @@ class _Routes:
             with tempfile.TemporaryDirectory(prefix="shapeflow-studio-") as tmp:
                 path = os.path.join(tmp, name)
                 try:
-                    await _in_thread(lambda: save(path, mesh))
+                    lost = await _in_thread(lambda: _data_losses(lambda: save(path, mesh)))
                     body = Path(path).read_bytes()
                 except Exception as exc:        # noqa: BLE001 - every failure is one line for the page
                     raise _refusal(web, name, exc, tmp) from None
@@ -169,7 +182,18 @@ class _Routes:
         session.mark_saved(mark)                        # downloaded: no unsaved changes from here
         await hub.broadcast(hub.state())
         return web.Response(body=body, content_type="application/octet-stream",
-                            headers={"Content-Disposition": content_disposition(name)})
+                            headers={"Content-Disposition": content_disposition(name),
+                                     WARNINGS_HEADER: json.dumps(lost, ensure_ascii=True)})
+
+    async def losses(self, request):
+        """``GET /losses/NAME.EXT``: what a download in that format would drop of the current mesh."""
+        web, (name, fmt) = self.web, self._format(request)
+        mesh = self.hub.session.mesh
+        try:
+            lost = await _in_thread(lambda: _data_losses(lambda: fmt.writer(io.BytesIO(), mesh, binary=None)))
+        except Exception as exc:                # noqa: BLE001 - every failure is one line for the page
+            raise _refusal(web, name, exc, None) from None
+        return web.json_response({"format": fmt.name, "losses": lost})
 
     async def received(self, request, kind: str):
         """The uploaded file, written into a fresh temporary folder under its own base name:
@@ -252,6 +276,27 @@ class _Routes:
         return self.web.json_response({"n_vertices": s.n_input_vertices})
 
 
+_WARNINGS_LOCK = threading.Lock()     # warnings.catch_warnings changes the process's filters: one at a time
+
+
+def _data_losses(write) -> list:
+    """Run ``write()`` and return the messages of the :class:`~shapeflow.errors.DataLossWarning` it
+    gave (each once, in order); they are the page's to show, not the server's terminal's."""
+    import warnings
+
+    from ..errors import DataLossWarning
+
+    with _WARNINGS_LOCK, warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", DataLossWarning)
+        write()
+    out = []
+    for w in caught:
+        text = " ".join(str(w.message).split())
+        if issubclass(w.category, DataLossWarning) and text not in out:
+            out.append(text)
+    return out
+
+
 def _refusal(web, name: str, exc: BaseException, tmp: str | None):
     """The one-line answer to a failed upload or download: 400 for what the file or the request holds
     (a :class:`ShapeflowError`), 507 for a full or unwritable temporary folder, 500 for anything
@@ -295,7 +340,7 @@ def _guard_middleware(web, guard: Guard):
 def make_app(session: StudioSession, *, lams=DEFAULT_LAMS, solve: bool = True, max_upload: int = MAX_UPLOAD,
              name: str = "", token: str | None = None, host: str = "127.0.0.1", port: int = 0,
              allow_hosts=(), outbox_limit: int = OUTBOX_LIMIT, stall_seconds: float = STALL,
-             solve_at_start: bool | None = None):
+             solve_at_start: bool | None = None, front: str | None = None):
     """The aiohttp application serving ``session`` (the family over ``lams`` is solved at start;
     ``name``: what the page calls the mesh, and the stem of downloads).
 
@@ -307,9 +352,10 @@ def make_app(session: StudioSession, *, lams=DEFAULT_LAMS, solve: bool = True, m
     tab and how long one send to it may take (:mod:`~shapeflow.studio.outbox`).  ``solve`` solves
     the family of every mesh the server shows; ``solve_at_start`` (default: ``solve``) whether the
     app does it for the first mesh when it starts (:class:`StudioServer` does it once it listens).
+    ``front``: the axis a file opened in the page faces when it names none (``--front``).
     """
     web, WSMsgType = _web()
-    hub = Hub(session, sorted((float(x) for x in lams), reverse=True), name)
+    hub = Hub(session, sorted((float(x) for x in lams), reverse=True), name, front)
     r = _Routes(hub, web, WSMsgType, solve=solve, max_upload=params.integer("max_upload", max_upload, lo=1),
                 outbox={"limit": params.integer("outbox_limit", outbox_limit, lo=1),
                         "stall": params.number("stall_seconds", stall_seconds, lo=0.001)})
@@ -323,6 +369,7 @@ def make_app(session: StudioSession, *, lams=DEFAULT_LAMS, solve: bool = True, m
     app.router.add_get("/", r.index)
     app.router.add_get("/ws", r.socket)
     app.router.add_get("/download/{name}", r.download)
+    app.router.add_get("/losses/{name}", r.losses)
     app.router.add_post("/open", r.open_file)
     app.router.add_post("/weights", r.open_weights)
     app.router.add_static("/static/", STATIC, follow_symlinks=False)

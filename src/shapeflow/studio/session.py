@@ -30,6 +30,7 @@ import numpy as np
 from .. import params
 from ..errors import ParameterError
 from ..mesh import Mesh
+from .blend import Sculptor
 from .history import History
 from .sharp import SharpFeatures
 
@@ -92,11 +93,11 @@ class StudioSession(SharpFeatures):
         self._status = FamilyStatus()
         self._job = 0
         self._thread: threading.Thread | None = None
-        self._brush = None
-        self._brush_key = None
+        self._sculpt = Sculptor()         # the brushes, and the open stroke's blend
         self.version = 0      #: increases with every change of positions or weights
         self._shape_version = 0
         self._axes = None
+        self._front = None
 
     # --- state ---------------------------------------------------------
     @property
@@ -120,15 +121,17 @@ class StudioSession(SharpFeatures):
     @property
     def mesh(self) -> Mesh:
         """The current mesh on the input's own layout (a welded session's copies of a vertex all get
-        its position and weight), weights as its ``"weight"`` attribute, the input's attributes kept."""
+        its position and weight), weights as its ``"weight"`` attribute, the input's attributes kept,
+        and :attr:`front` as ``metadata["front"]``."""
         with self._lock:
             V, w = self._V.copy(), self._w.copy()
         if not self.welded:
-            return self._base.with_vertices(V).with_weights(w)
-        from ..geometry.weld import unweld
+            out = self._base.with_vertices(V).with_weights(w)
+        else:
+            from ..geometry.weld import unweld
 
-        wmap = self._base.weld_map
-        return unweld(self._base.with_vertices(V), self._input, self._base).with_weights(w[wmap])
+            out = unweld(self._base.with_vertices(V), self._input, self._base).with_weights(w[self._base.weld_map])
+        return out if self.front is None else out.with_metadata(front=self.front)
 
     @property
     def vertices(self) -> np.ndarray:
@@ -165,10 +168,12 @@ class StudioSession(SharpFeatures):
         with self._lock:
             self._history.close(self._V, self._w)
             self._history.open(what, self._V.shape[0])
+            self._sculpt.end()
 
     def end_stroke(self) -> bool:
         """Close the open stroke (its edits become one undo step); False when none was open."""
         with self._lock:
+            self._sculpt.end()
             return self._history.close(self._V, self._w)
 
     @property
@@ -253,10 +258,7 @@ class StudioSession(SharpFeatures):
         positions the distances are measured on (default the current ones; the studio passes the
         shape its slider previews, which is what the pointer touched).  ``mirror``: the same dab
         across the plane of symmetry as well (:meth:`mirrored`)."""
-        c = self._point("center", center)
-        r = params.number("radius", radius)
-        if not r > 0:
-            raise ParameterError(f"radius must be > 0, got {radius!r}")
+        c, r = self._point("center", center), self._radius(radius)
         v = params.number("value", value)
         s = params.number("strength", strength)
         if not (0.0 <= v <= 1.0 and 0.0 <= s <= 1.0):
@@ -282,36 +284,46 @@ class StudioSession(SharpFeatures):
             strength: float = 0.05, mirror: bool = False) -> np.ndarray:
         """One dab of the enhancement brush (or, with ``inflate``, the inflate brush) at ``center``,
         the painted weights scaling it; returns the vertices moved (one undo step, or part of the open
-        stroke).  ``mirror``: the same dab across the plane of symmetry as well."""
-        from ..sculpt import Brush, InflateBrush
-
-        c = self._point("center", center)
+        stroke).  ``mirror``: the same dab across the plane of symmetry as well.  The enhancement
+        brush has the smooth falloff, and the dabs of one stroke (a mirrored dab's two included) do not
+        compound: each is solved on the shape the stroke began on and the stroke blends them
+        (:mod:`~shapeflow.studio.blend`)."""
+        c, r = self._point("center", center), self._radius(radius)
         with self._lock:
-            key = (self._shape_version, bool(inflate))
-            if self._brush is None or self._brush_key != key:
-                mesh = self._base.with_vertices(self._V.copy())
-                sharp = self._brush_features(inflate)       # the sharp edges kept (studio.sharp)
-                # undo_limit=0: the session keeps the history; the brush keeps none of its own
-                self._brush = (InflateBrush(mesh, radius=radius, strength=strength, weights=self._w.copy(),
-                                            undo_limit=0) if inflate else
-                               Brush(mesh, radius=radius, lam=lam, weights=self._w.copy(), undo_limit=0, **sharp))
-            b = self._brush
-            b.set_weights(self._dab_weights(self._w.copy()))     # painted since the brush was built: no rebuild
-            b.radius = radius
-            if inflate:
-                b.strength = strength
-            else:
-                b.lam = lam
+            sc = self._sculpt
+            centres = self._centres(c, r, mirror)
+            sc.brush_for(self._shaped, self._shape_version, self._V.shape[0],
+                         lambda: self._dab_weights(self._w.copy()), self._brush_features, inflate=bool(inflate),
+                         blend=self._history.grouping or len(centres) > 1, radius=r, lam=lam, strength=strength)
             moved = []
-            centres = self._centres(c, float(radius), mirror)
             with self._grouped("dab", len(centres)):
                 for cc in centres:
-                    m = np.asarray(b.dab(cc), np.int64)
+                    m, new = sc.dab(cc)
                     if m.size:
-                        self._record("dab", m, np.array(b.vertices[m]), None)
+                        self._record("dab", m, new, None)
                         moved.append(m)
-            self._brush_key = (self._shape_version, bool(inflate))     # the brush holds exactly these positions
+            sc.settled(self._shape_version)
+            if not self._history.grouping:
+                sc.end()                     # a lone (mirrored) dab's blend ends with it
             return np.unique(np.concatenate(moved)) if moved else np.zeros(0, np.int64)
+
+    def ready_brush(self) -> None:
+        """Build the enhancement brush on the current shape now if the last stroke left it behind (the
+        studio does it when a stroke ends, so that the next one starts at once).  The build holds no
+        lock: the session answers meanwhile, and a brush the shape has outrun is not kept."""
+        with self._lock:
+            key, version = self._sculpt.key, self._shape_version
+            if key is None or key[1] or key[0] == version or self._history.grouping:
+                return
+            mesh, w, sharp = self._shaped(), self._w.copy(), self._brush_features(False)
+        brush = self._sculpt.build(mesh, w, sharp)
+        with self._lock:
+            if self._sculpt.key == key and self._shape_version == version and not self._history.grouping:
+                self._sculpt.brush, self._sculpt.key = brush, (version, False)
+
+    def _shaped(self) -> Mesh:
+        """The welded mesh at the current positions (what a brush is built on)."""
+        return self._base.with_vertices(self._V.copy())
 
     # --- symmetry ----------------------------------------------------------
     @property
@@ -322,16 +334,28 @@ class StudioSession(SharpFeatures):
 
     @property
     def front(self) -> str | None:
-        """The axis the model faces as its ``metadata["front"]`` names it (the bundled Spot: ``-z``);
-        None when it names none (or one along the up axis): the view rule's default then."""
+        """The axis the model faces: the one set here, else the one its ``metadata["front"]`` names (the
+        bundled Spot: ``-z``); None when neither names one (or names one along the up axis): the view
+        rule's default then.  Setting it (None: back to the file's) turns the views and the mirror
+        plane, and :attr:`mesh` carries it in its metadata."""
         from ..rendering.style import frame
 
-        f = self._input.metadata.get("front")
+        f = self._front if self._front is not None else self._input.metadata.get("front")
         try:
             frame(self.up_axis, f)
         except ParameterError:
             return None
         return f
+
+    @front.setter
+    def front(self, axis) -> None:
+        from ..rendering.style import frame
+
+        if axis is not None:
+            frame(self.up_axis, axis)        # ParameterError: not an axis, or one along the up axis
+            axis = str(axis).strip().lower()
+        with self._lock:
+            self._front, self._axes = axis, None
 
     @property
     def axes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -363,13 +387,24 @@ class StudioSession(SharpFeatures):
         if not mirror:
             return [c]
         m = self.mirrored(c)
-        return [c] if np.linalg.norm(m - c) < 0.25 * r else [c, m]
+        with np.errstate(over="ignore"):          # a point far out: inf, two dabs (the far one moves nothing)
+            near = np.linalg.norm(m - c) < 0.25 * r
+        return [c] if near else [c, m]
+
+    @staticmethod
+    def _radius(radius) -> float:
+        r = params.number("radius", radius)
+        if not r > 0:
+            raise ParameterError(f"radius must be > 0, got {radius!r}")
+        return r
 
     @staticmethod
     def _point(name: str, x) -> np.ndarray:
         c = params.real_array(name, x)
         if c.shape != (3,):
             raise ParameterError(f"{name} must be 3 numbers, got shape {c.shape}")
+        if not np.isfinite(c).all():
+            raise ParameterError(f"{name} must be 3 finite numbers, got {c.tolist()!r}")
         return c
 
     @contextlib.contextmanager

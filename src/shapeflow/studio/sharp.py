@@ -37,7 +37,7 @@ class FeatureSetting:
 
 class SharpFeatures:
     """The sharp-feature half of a studio session (it uses the session's ``_lock``, ``_base``,
-    ``_input``, ``_V`` and ``_brush``)."""
+    ``_input``, ``_V`` and ``_sculpt``)."""
 
     _feature_setting = FeatureSetting()
     _marked_pairs: np.ndarray | None = None
@@ -62,7 +62,7 @@ class SharpFeatures:
             old, self._feature_setting = self._feature_setting, new
             changed = self._feature_options(old) != self._feature_options(new)
             if changed:
-                self._brush = None                # rebuilt with the new sharp edges at the next dab
+                self._sculpt.forget()             # rebuilt with the new sharp edges at the next dab
             return changed
 
     @property

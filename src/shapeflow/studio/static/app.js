@@ -11,9 +11,13 @@ import "./sharp.js";      // the "Keep sharp edges" control and the sharp edges 
 onText("mesh", (m) => { view.newMesh(m); panel.newMesh(m); });
 onText("state", (m) => panel.state(m));
 onText("field", (m) => view.setField(m));
+onText("orientation", (m) => panel.orientation(m));
 onText("error", (m) => panel.showError(m.message));
-// a new request clears the last error (the λ slider's and colour requests do not: they follow the view)
-onText("sent", (m) => { if (!["lam", "field", "begin", "end"].includes(m.op)) panel.clearError(); });
+// a new request clears the last error and information (the λ slider's and colour requests do not: they
+// follow the view)
+onText("sent", (m) => {
+  if (!["lam", "field", "begin", "end"].includes(m.op)) { panel.clearError(); panel.clearInfo(); }
+});
 onText("closed", () => panel.showError("disconnected: restart shapeflow studio and reload the page"));
 onFrame("TRI0", view.setTriangles);
 onFrame("EDG0", view.setEdges);

@@ -66,12 +66,24 @@ export async function post(route, file) {
   }
 }
 
-// GET /download/NAME: [blob, null] or [null, the reason]
+// GET /download/NAME: [blob, null, what the format dropped] or [null, the reason, []]
 export async function fetchFile(name) {
   try {
     const r = await fetch(`/download/${encodeURIComponent(name)}`, { headers: authed });
-    return r.ok ? [await r.blob(), null] : [null, (await r.text()).trim()];
+    if (!r.ok) return [null, (await r.text()).trim(), []];
+    let lost = [];
+    try { lost = JSON.parse(r.headers.get("X-Shapeflow-Warnings") || "[]"); } catch (err) { lost = []; }
+    return [await r.blob(), null, lost];
   } catch (err) {
-    return [null, `${name}: the download failed (${err.message})`];
+    return [null, `${name}: the download failed (${err.message})`, []];
+  }
+}
+// GET a JSON answer (PATH without its leading "/"): the object, or {error: the reason}
+export async function fetchJSON(path) {
+  try {
+    const r = await fetch(`/${path}`, { headers: authed });
+    return r.ok ? await r.json() : { error: (await r.text()).trim() };
+  } catch (err) {
+    return { error: `the request failed (${err.message})` };
   }
 }

@@ -1,18 +1,22 @@
 // The panel: status and errors, the λ slider (its typed value and the family's range), the family's
 // options, colours, undo, files, and the keyboard (every shortcut in one table, which "?" shows).
 import { $, studio } from "./state.js";
-import { fetchFile, post, send } from "./net.js";
+import { fetchFile, fetchJSON, post, send } from "./net.js";
 import * as tools from "./tools.js";
 import * as view from "./view.js";
 
 // --- status and errors ---------------------------------------------------------------
-export function showError(text) {
-  studio.error = text;
-  $("error").firstElementChild.textContent = text;
-  $("error").classList.add("shown");
+// a notice across the top of the view (× dismisses it): [show(text), clear()], its text as studio[id]
+function banner(id) {
+  const show = (text) => { studio[id] = text; $(id).firstElementChild.textContent = text; $(id).classList.add("shown"); };
+  const clear = () => { studio[id] = null; $(id).classList.remove("shown"); };
+  $(`${id}-close`).onclick = clear;
+  return [show, clear];
 }
-export function clearError() { studio.error = null; $("error").classList.remove("shown"); }
-$("error-close").onclick = clearError;
+// an error: the red banner; information, not a failure (a λ outside the family, what a download's
+// format dropped): the blue one
+export const [showError, clearError] = banner("error");
+export const [showInfo, clearInfo] = banner("info");
 
 let last = null;                      // the last state message
 function showStatus() {
@@ -55,16 +59,18 @@ $("lam-num").addEventListener("change", () => {
   const v = Number($("lam-num").value), lo = Number($("lam").min), hi = Number($("lam").max);
   if ($("lam-num").value.trim() === "" || !Number.isFinite(v)) { $("lam-num").value = studio.lam; return; }
   const c = Math.min(hi, Math.max(lo, v));
-  if (c !== v) showError(`λ ${v} is outside the family (${lo} … ${hi}): showing ${c}; widen the range to go further`);
+  if (c !== v) showInfo(`λ ${v} is outside the family (${lo} … ${hi}): showing ${c}; widen the range to go further`);
   $("lam-num").blur();
   setLam(c);
 });
-function showRange(lams) {               // the family's from/to/step, unless one of them is being edited
+// the family's range as the slider reads it: from its left end (enhancement) to its right end, unless a
+// box is being edited; a range typed either way round is solved as typed (the command line's grid)
+function showRange(lams) {
   if (!lams.length || ["fam-from", "fam-to", "fam-step"].some((id) => document.activeElement === $(id))) return;
-  const a = lams[0], b = lams[lams.length - 1];
+  const a = Math.min(...lams), b = Math.max(...lams);
   $("fam-from").value = a; $("fam-to").value = b;
-  $("fam-step").value = lams.length > 1 ? Number(((b - a) / (lams.length - 1)).toPrecision(6)) : -10;
-  $("lam").min = Math.min(a, b); $("lam").max = Math.max(a, b);
+  $("fam-step").value = lams.length > 1 ? Number(((b - a) / (lams.length - 1)).toPrecision(6)) : 10;
+  $("lam").min = a; $("lam").max = b;
 }
 function solveRange() {
   send({ op: "solve", from: Number($("fam-from").value), to: Number($("fam-to").value),
@@ -99,8 +105,16 @@ export function state(m) {
 }
 export function newMesh(m) {
   studio.ready = false; studio.name = m.name; studio.n = m.n_vertices; studio.lam = 0; showLam(0);
-  view.dropField(); formats(m.formats || []);
+  view.dropField(); formats(m.formats || []); showFront(m); formatNote();
 }
+// the axis the model faces (the server's orientation message): the selector, and the views turned to it
+function showFront(m) {
+  studio.front = m.front || m.default_front;
+  for (const o of $("front").options) o.disabled = o.value.slice(1) === m.up_axis;
+  $("front").value = studio.front;
+}
+export function orientation(m) { showFront(m); view.setModel(m); view.lookFrom("front"); }
+$("front").onchange = () => send({ op: "front", axis: $("front").value });
 function requestField() {                  // of the shape shown: the slider's preview when it is off 0
   const mode = fieldMode();
   if (mode) send({ op: "field", name: mode, lam: studio.lam !== 0 ? studio.lam : null });
@@ -146,6 +160,25 @@ window.addEventListener("drop", (e) => {
   const f = e.dataTransfer.files[0];
   if (f) upload(/\.(npy|txt)$/i.test(f.name) ? "weights" : "open", f);
 });
+// what the chosen format keeps: the server runs its writer on the current mesh (GET /losses/NAME.EXT)
+const downloadName = () => {
+  // the opened file's stem, with what no file name may hold (studio/security.py) as "_"
+  const stem = (studio.name || "shapeflow-studio").replace(/\.[^.]*$/, "")
+    .replace(/[\/\\"<>:|?*\p{Cc}\p{Cf}\p{Zl}\p{Zp}\p{Co}\p{Cn}]/gu, "_") || "shapeflow-studio";
+  return `${stem}-studio.${$("format").value}`;
+};
+let noteAsked = 0;
+async function formatNote() {
+  const asked = ++noteAsked, note = $("format-note");
+  const answer = await fetchJSON(`losses/${encodeURIComponent(downloadName())}`);
+  if (asked !== noteAsked) return;                 // the menu changed meanwhile
+  const lost = answer.losses || [];
+  note.textContent = answer.error ? answer.error
+    : lost.length ? `⚠ ${lost.join("; ")}` : `${answer.format} keeps all this mesh holds`;
+  note.classList.toggle("keeps", !answer.error && !lost.length);
+  studio.formatNote = note.textContent;
+}
+$("format").onchange = formatNote;
 function formats(exts) {              // what the server reads and writes: the download list, the dialog's filter
   const sel = $("format"), keep = sel.value;
   if (sel.options.length !== exts.length) {
@@ -155,13 +188,12 @@ function formats(exts) {              // what the server reads and writes: the d
   $("open-file").accept = exts.map((e) => "." + e).join(",");
 }
 $("download").onclick = async () => {
-  clearError();
-  // the opened file's stem, with what no file name may hold (studio/security.py) as "_"
-  const stem = (studio.name || "shapeflow-studio").replace(/\.[^.]*$/, "")
-    .replace(/[\/\\"<>:|?*\p{Cc}\p{Cf}\p{Zl}\p{Zp}\p{Co}\p{Cn}]/gu, "_") || "shapeflow-studio";
-  const name = `${stem}-studio.${$("format").value}`;
-  const [blob, why] = await fetchFile(name);
+  clearError(); clearInfo();
+  const name = downloadName();
+  const [blob, why, lost] = await fetchFile(name);
   if (why) { showError(why); return; }
+  studio.downloadLosses = lost;                    // what the server's writer dropped (its warnings)
+  if (lost.length) showInfo(`${name} downloaded; ${lost.join("; ")}`);
   const a = document.createElement("a");
   a.href = URL.createObjectURL(blob); a.download = name; a.click();
   setTimeout(() => URL.revokeObjectURL(a.href), 10000);

@@ -20,7 +20,7 @@ export function showRadius() { $("radius-value").textContent = radius().toPrecis
 export function showStrength() {
   const s = strength(), t = tool();
   if (t in strengths) strengths[t] = s;
-  $("strength-value").textContent = t === "sculpt" ? `${s.toFixed(2)} (λ ${brushLam(s)})` : s.toFixed(2);
+  $("strength-value").textContent = t === "sculpt" || t === "view" ? `${s.toFixed(2)} (λ ${brushLam(s)})` : s.toFixed(2);
 }
 export function setRadius(r) {
   const el = $("radius");
@@ -31,7 +31,8 @@ export function setRadius(r) {
 export function setStrength(s) { $("strength").value = Math.min(1, Math.max(0, s)); showStrength(); }
 export function toolChanged() {
   const t = tool();
-  if (t in strengths) $("strength").value = strengths[t];
+  // View has no strength of its own: the slider shows the Enhance brush's, disabled
+  $("strength").value = strengths[t in strengths ? t : "sculpt"];
   $("strength").disabled = t === "view";
   showStrength();
   if (t === "view") hideRings();
@@ -44,7 +45,7 @@ export function newMesh(sphereRadius) {
   showRadius();
 }
 // the default radius as a fraction of the model's bounding sphere (docs/studio.md: "Brush strength")
-export const DEFAULT_RADIUS = 0.15;
+export const DEFAULT_RADIUS = 0.2;
 
 // --- the brush circles ----------------------------------------------------------------
 const ring = view.makeRing(), twin = view.makeRing();
@@ -65,8 +66,14 @@ function moveRings(x, y) {
 }
 
 // --- strokes: pointer down to up, one undo step ------------------------------------------
-// one dab in flight at a time; pointer moves meanwhile are not dropped: the newest waits and is sent
-// when the answer arrives (the stroke reaches where the pointer went), and the stroke ends after it
+// dabs every SPACING × the radius along the pointer's path (as the library's Brush.stroke and the
+// Blender add-on's Space stroke): what a stroke does depends on where the pointer went, not on how
+// fast it moved or how many events the browser sent.  Between the last dab and the pointer the path
+// is a straight line on the screen, each dab's centre the surface under it.  The dabs of one pointer
+// move go out together; pointer moves made while they are on their way are not dropped: the newest
+// waits and the stroke goes on from the last dab to it when the answers arrive
+export const SPACING = 0.25;
+studio.spacing = SPACING;
 let stroke = null, waiting = false;
 studio.dabs = 0;
 function message(h, mods) {
@@ -80,18 +87,39 @@ function message(h, mods) {
                                 strength: (mods.ctrl ? -1 : 1) * inflateStrength(s) };
   return { op: "dab", center, radius: r, mirror, lam: (mods.ctrl ? -1 : 1) * brushLam(s) };
 }
-function dab(x, y, t, queued) {
+// the dabs from the last one towards the pointer at (x, y): [{x, y, h}], none when it is nearer
+// than the spacing or off the model
+function dabsTowards(x, y) {
   const h = view.pick(x, y);
-  if (!h) return false;
+  if (!h) return [];
+  const last = stroke.last;
+  const step = studio.spacing * radius(), d = last ? h.point.distanceTo(last.h.point) : 0;
+  if (!last || !(step > 0)) return [{ x, y, h }];             // the stroke's first dab; spacing 0: at every move
+  const out = [];
+  for (let k = 1; k * step <= d; k++) {
+    const f = (k * step) / d, px = last.x + f * (x - last.x), py = last.y + f * (y - last.y);
+    const hk = view.pick(px, py);
+    if (hk) out.push({ x: px, y: py, h: hk });
+  }
+  return out;
+}
+function dab(x, y, t, queued) {
+  const dabs = dabsTowards(x, y);
+  if (!dabs.length) return false;
   waiting = true;
   studio.editAt = { t, queued };
-  studio.dabs++;
-  send(message(h, stroke.mods), () => { waiting = false; next(); });
+  studio.dabs += dabs.length;
+  stroke.last = dabs[dabs.length - 1];
+  dabs.forEach((d, i) => send(message(d.h, stroke.mods),
+                              i === dabs.length - 1 ? () => { waiting = false; next(); } : null));
   return true;
 }
 function next() {
   if (!stroke) return;
-  if (stroke.queued) { const q = stroke.queued; stroke.queued = null; dab(q.x, q.y, q.t, true); return; }
+  if (stroke.queued) {
+    const q = stroke.queued; stroke.queued = null;
+    if (dab(q.x, q.y, q.t, true)) return;
+  }
   if (stroke.ending) finish();
 }
 function finish() {
@@ -104,7 +132,7 @@ view.canvas.addEventListener("pointerdown", (e) => {
   if (adjusting) { e.preventDefault(); endAdjust(e.button === 0); return; }
   if (e.button !== 0 || tool() === "view" || stroke || !view.pick(e.clientX, e.clientY)) return;
   view.controls.enabled = false;
-  stroke = { mods: { ctrl: e.ctrlKey || e.metaKey, shift: e.shiftKey }, queued: null, ending: false };
+  stroke = { mods: { ctrl: e.ctrlKey || e.metaKey, shift: e.shiftKey }, queued: null, ending: false, last: null };
   studio.stroking = true;
   send({ op: "begin" });
   dab(e.clientX, e.clientY, e.timeStamp, false);

@@ -237,8 +237,12 @@ export function paintColours() {
   if (field) {              // a robust symmetric range: the 98th percentile of |value|, from the server
     scale = mesh.field.scale || 1;
     $("legend-lo").textContent = (-scale).toPrecision(3); $("legend-hi").textContent = scale.toPrecision(3);
+    $("legend-bar").style.background = "linear-gradient(to right, #3b4cc0, #f2f2f2, #b40426)";
+  } else if (mode === "weights") {
+    $("legend-lo").textContent = "weight 0"; $("legend-hi").textContent = "1";
+    $("legend-bar").style.background = "linear-gradient(to right, rgb(137,160,244), rgb(251,244,218))";
   }
-  $("legend").style.visibility = field ? "visible" : "hidden";
+  $("legend").style.visibility = field || mode === "weights" ? "visible" : "hidden";
   for (let i = 0; i < mesh.n; i++) {
     if (mode === "weights") weightColour(mesh.weights[i], c.array, 3 * i);
     else if (field) diverging(field[i] / scale, c.array, 3 * i);
