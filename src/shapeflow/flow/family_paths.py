@@ -12,8 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.sparse as sp
 
-from ..linalg.multishift import multishift_cg
+from ..linalg.multishift import BLOCK_BYTES, multishift_cg
 from ..linalg.spd import estimate_cg_iterations
 from .family_features import coupled_seed_system, multishift_bicg
 from .report import FamilyReport, FlowReport
@@ -146,25 +147,37 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
             R0, As, AsT, cols = coupled_seed_system(interior_sys, curve_sys, S, V, X, ax)
             res = multishift_bicg(As, AsT, R0, deltas, rtol=flow_solver.rtol, maxiter=plan.maxiter,
                                   progress=on_progress)
+            inv = None
         else:
             R0, As, cols = seed_system(interior_sys, S, V, X, ax)
-            res = multishift_cg(As, R0, deltas, rtol=flow_solver.rtol, maxiter=plan.maxiter, progress=on_progress)
+            As, R0, S, inv = in_locality_order(operator, As, R0, S)
+        sign = np.where(lams >= 0, 1.0, -1.0)
+        finite = np.ones(plan.sigmas.size, bool)
+
+        every = list(cols) == [0, 1, 2]
+
+        def add(shifts, rows):
+            """Members += ± their displacements Δ = C_1^{-1/2} Y (rows (shifts, columns, n), scaled already)."""
+            for i, d in zip(shifts, rows):
+                finite[i] = bool(np.isfinite(d).all())
+                for m in member_of_shift[i]:
+                    for t, j in ((slice(None), slice(None)),) if every else enumerate(cols):
+                        if sign[m] > 0:
+                            out[m, :, j] += d[t].T
+                        else:
+                            out[m, :, j] -= d[t].T
+
+        post = (S, inv)                                     # 0 off the free rows; back from the locality order
+        if curve_sys is None:
+            res = multishift_cg(As, R0, deltas, rtol=flow_solver.rtol, maxiter=plan.maxiter,
+                                block_bytes=block_bytes(plan.sigmas.size, n), progress=on_progress, emit=add,
+                                post=post)
+        else:
+            add(np.arange(plan.sigmas.size), (res.X * S).transpose(1, 0, 2))
         report.krylov_iterations = res.krylov_iterations
-        Y = res.X                                           # (c, shifts, n)
-        Y *= S                                              # displacement Δ = C_1^{-1/2} Y (0 off the free rows)
-        ok = res.converged.all(axis=1) & np.isfinite(Y).all(axis=(0, 2))
+        ok = res.converged.all(axis=1) & finite
         its = np.where(res.converged, res.iterations, res.krylov_iterations).max(axis=1)
         report.member_iterations[solved] = its[plan.member_shift[solved]]
-        sign = np.where(lams >= 0, 1.0, -1.0)
-        for m in np.flatnonzero(solved):
-            i = plan.member_shift[m]
-            if not ok[i]:
-                continue
-            for t, j in enumerate(cols):
-                if sign[m] > 0:
-                    out[m, :, j] += Y[t, i]
-                else:
-                    out[m, :, j] -= Y[t, i]
         bad = np.flatnonzero(solved & ~ok[np.maximum(plan.member_shift, 0)])
         if bad.size:
             report.fallback_members = sorted(set(report.fallback_members) | {int(m) for m in bad})
@@ -177,6 +190,27 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
         rescale_members(flow_solver, out, lams, ax, report,
                         moved=lambda m: (lams[m] != 0.0 and has_interior) or has_boundary)
     return out
+
+
+def block_bytes(k: int, n: int) -> int:
+    """Memory for the stored seed residuals of a family of ``k`` shifts: four member-sized blocks
+    (:func:`~shapeflow.flow.family.family_bytes`), at least :data:`~shapeflow.linalg.multishift.BLOCK_BYTES`."""
+    return max(BLOCK_BYTES, 4 * min(k, 64) * 24 * n)
+
+
+def in_locality_order(operator, As, R0: np.ndarray, S: np.ndarray):
+    """The shared system in the operator pattern's bandwidth-reducing order where the compiled kernels
+    have one (its products gather from nearby rows: ~17 % faster at 126K vertices): (As, R0, S, inv)
+    permuted, with ``inv`` taking rows back; unchanged with ``inv = None`` elsewhere."""
+    pattern = operator.pattern
+    if not (sp.isspmatrix_csr(As) and getattr(pattern, "csr_built", False) and As.nnz == pattern.indices.size):
+        return As, R0, S, None
+    loc = pattern.locality()
+    if loc is None:
+        return As, R0, S, None
+    perm, inv, ptr, idx, src = loc
+    Ap = sp.csr_matrix((As.data[src], idx, ptr), shape=As.shape, copy=False)
+    return Ap, np.ascontiguousarray(R0[:, perm]), S[perm], inv
 
 
 def seed_system(interior_sys, S: np.ndarray, V: np.ndarray, X: np.ndarray, ax: np.ndarray):
