@@ -23,7 +23,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import shapeflow as sf  # noqa: E402
-from shapeflow.operators.weights import assemble as _assemble  # noqa: E402
+from shapeflow.operators.cotan import assemble as _assemble  # noqa: E402
 
 SHARED = HERE.parent.parent / "shared" / "meshes"
 

@@ -1,37 +1,19 @@
-"""Regenerate every picture under ``docs/img/``: the paper's figures on the shared real meshes.
+"""Regenerate every picture under ``docs/img/``: the paper's figures on real meshes.
 
     python docs/gallery.py [FIGURE ...] [--shared DIR] [--out DIR]
 
-FIGURE is any of ``fig1 fig5 … fig14`` (default: all).  Needs the render extra
-(``pip install 'shapeflow[render]'``); the paper's figures need the shared meshes
-(``../shared/meshes`` beside the repository, or ``--shared`` /
-``$SHAPEFLOW_SHARED``), fig13 builds its mesh here, and fig14 needs Blender as a
-Python module for its reference (``--blender-python PYTHON``, a Python with
-``bpy==5.0.1``, or ``$SHAPEFLOW_BLENDER_PYTHON``).  A figure whose inputs are
-missing is skipped, naming them.  Each picture is saved as a 256-colour dithered
-PNG to keep it small (about 60–130 KB); the script prints what it did and the
-numbers the captions quote.
-
-Figures (numbers from "Shape Enhanced With an Adapted Laplacian Operator For
-Hybrid Quad/Triangle Meshes"):
-
-* fig1  a family of shapes from one multi-shift solve, blue → red
-        with a message while that module is missing;
-* fig5  coarse cage → Catmull–Clark → enhancement with weights painted on the cage;
-* fig6  cage → Catmull–Clark → smoothing λ=60, λ_b=12 → enhancement λ=−200, λ_b=12
-        (an open model, so λ_b acts on its boundary);
-* fig7  λ=7, 2 iterations on the triangle, quad and randomly mixed versions of Spot;
-* fig8  camel, λ = −30, −100, −400; weighted enhancement of the legs
-        (λ=−50, 2 iterations) and of the head and neck (λ=−200);
-* fig9  one stroke along Spot's back: the enhancement brush (λ=−30 per dab) against an
-        inflate brush, coloured by displacement;
-* fig11 normalised (eq. 10) vs area-normalised (eq. 9) operator, λ=−50, on a
-        model and on the same model scaled by 4;
-* fig12 the same weighted enhancement on three poses of Spot;
-* fig13 a hexagonal nut (built here): plain enhancement against feature-aware
-        enhancement (feature_angle=30), feature lines drawn;
-* fig14 creased Catmull–Clark subdivision of a block: shapeflow beside Blender's
-        Subdivision Surface with creases, and their distance.
+FIGURE is any of ``fig1 fig5 … fig14`` (default: all); needs the render extra.  The meshes come
+from the repository's ``tests/data/meshes`` and the examples bundled with the package, so a fresh
+clone makes every figure but two: fig8's camel, whose licence keeps it out of the repository, is
+read from ``--shared DIR`` (a folder holding ``meshes/camel_tri.obj``; or ``$SHAPEFLOW_SHARED``, or
+``shared/`` in or beside the repository), and fig14 needs Blender as a Python module for its
+reference (``--blender-python PYTHON``, a Python with ``bpy==5.0.1``, or
+``$SHAPEFLOW_BLENDER_PYTHON``).  A figure whose inputs are missing is skipped, naming them.  Each
+picture is a 256-colour dithered PNG (about 20–130 KB); the script prints the numbers the captions
+quote.  fig1 and fig5–fig12 are the paper's figures ("Shape Enhanced With an Adapted Laplacian
+Operator For Hybrid Quad/Triangle Meshes"), fig13 (sharp features on a nut built here) and fig14
+(creased subdivision against Blender's) shapeflow's own; each ``figureN_*`` function says what it
+draws, and docs/gallery.md shows them with their captions.
 """
 
 from __future__ import annotations
@@ -61,12 +43,18 @@ class Unavailable(RuntimeError):
 
 #: the Python with Blender's bpy that fig14 runs its reference in (set by main)
 BLENDER_PYTHON: list = []
+#: where meshes are looked for: the repository's test meshes, the bundled examples, then --shared
+REPOSITORY_MESHES = ROOT / "tests" / "data" / "meshes"
+BUNDLED_MESHES = Path(sf.__file__).resolve().parent / "data"
 
 
 def shared_dir(arg: str | None) -> Path | None:
-    for cand in (arg, os.environ.get("SHAPEFLOW_SHARED"), ROOT.parent / "shared", ROOT / "shared"):
+    """The folder holding ``meshes/``: ``--shared``, ``$SHAPEFLOW_SHARED``, ``shared/`` in or beside the repository."""
+    for cand in (arg, os.environ.get("SHAPEFLOW_SHARED"), ROOT / "shared", ROOT.parent / "shared"):
         if cand and (Path(cand) / "meshes").is_dir():
             return Path(cand)
+    if arg:
+        raise SystemExit(f"--shared {arg}: no meshes/ folder there")
     return None
 
 
@@ -83,20 +71,26 @@ def save_small(path: Path, img: np.ndarray) -> int:
     return size
 
 
-def load(meshes: Path | None, name: str) -> sf.Mesh:
-    if meshes is None:
-        raise Unavailable("the shared meshes were not found: pass --shared DIR (the folder holding meshes/)")
-    p = meshes / f"{name}.obj"
-    if not p.exists():
-        raise Unavailable(f"{p} is missing")
-    return sf.load(p)
+def load(meshes: list[Path], name: str) -> sf.Mesh:
+    """``NAME.obj`` from the first of ``meshes`` (folders) that has it."""
+    for folder in meshes:
+        if (folder / f"{name}.obj").is_file():
+            return sf.load(folder / f"{name}.obj")
+    raise Unavailable(f"{name}.obj is neither in tests/data/meshes nor bundled: pass --shared DIR (a folder "
+                      f"holding meshes/{name}.obj)")
 
 
-def subdivide(mesh: sf.Mesh, levels: int, **kw) -> sf.Mesh:
-    try:
-        return sf.subdivide(mesh, levels, **kw)
-    except (ImportError, AttributeError) as exc:
-        raise Unavailable(f"needs shapeflow.subdivide ({exc})") from None
+def side_by_side(*images: np.ndarray) -> np.ndarray:
+    """Pictures next to each other, top-aligned on white (panels with colour bars of their own)."""
+    h = max(im.shape[0] for im in images)
+    return np.hstack([np.vstack([im, np.full((h - im.shape[0], im.shape[1], 3), 255, np.uint8)]) for im in images])
+
+
+def moved_range(mesh: sf.Mesh, reference: sf.Mesh, q: float = 98.0) -> tuple[float, float]:
+    """± the ``q``-th percentile of how far the vertices that moved moved (the untouched would collapse it)."""
+    d = np.linalg.norm(mesh.vertices - reference.vertices, axis=1)
+    top = float(np.percentile(d[d > 1e-9 * reference.diagonal], q))
+    return -top, top
 
 
 def height_weights(v: np.ndarray, lo: float, hi: float) -> np.ndarray:
@@ -107,7 +101,7 @@ def height_weights(v: np.ndarray, lo: float, hi: float) -> np.ndarray:
 # --------------------------------------------------------------------------
 # figures
 
-def figure1_family(meshes: Path, out: Path) -> str:
+def figure1_family(meshes: list[Path], out: Path) -> str:
     """FIGURE 1: a family of shapes, λ = 0 … −240 in steps of −5, from one
     multi-shift solve, coloured blue (λ=0) → red (λ=−240); an evenly spaced
     subset of the members is drawn in a strip."""
@@ -126,34 +120,38 @@ def figure1_family(meshes: Path, out: Path) -> str:
     return f"{path.name} ({kb:.0f} KB): {len(lams)} members, λ = 0 … −240 (12 drawn)"
 
 
-def figure5_cage(meshes: Path, out: Path) -> str:
+def figure5_cage(meshes: list[Path], out: Path) -> str:
     """Weights painted on Spot's hybrid cage (triangles, quads, pentagons: head = 1), carried
-    through 3 Catmull–Clark levels (smooth weight rule), then weighted enhancement."""
+    through 3 Catmull–Clark levels (smooth weight rule), then weighted enhancement at three λ,
+    coloured by how far each result moved along the subdivided surface's normals, over one range
+    (the middle result's), so the strongest saturates and the weakest stays pale."""
     cage = load(meshes, "spot_control_hybrid")
     y = cage.vertices[:, 1]
     w = (y >= y.min() + 0.65 * np.ptp(y)).astype(float)     # the top 35 % of the height: the head
     cage = cage.with_weights(w)
-    fine = subdivide(cage, 3, weights_rule="smooth")
-    lams = (-100.0, -300.0, -600.0)
+    fine = sf.subdivide(cage, 3, weights_rule="smooth")
+    lams = (-30.0, -150.0, -600.0)
     res = [sf.flow(fine, lam, weights="weight") for lam in lams]
-    img = render_meshes(
-        [cage, fine, *res], None,
-        labels=["cage + weights", "Catmull-Clark ×3", *(f"weighted λ={lam:g}" for lam in lams)],
-        color=["weights", "weights", "none", "none", "none"], edges=[True, False, False, False, False],
-        shading=["flat", "smooth", "smooth", "smooth", "smooth"], view=(-140, 20), size=(260, 290))
+    size, view = (260, 290), (-140, 20)
+    weights = render_meshes([cage, fine], None, labels=["cage + weights", "Catmull-Clark ×3"], color="weights",
+                            edges=[True, False], shading=["flat", "smooth"], view=view, size=size)
+    moved = render_meshes(res, None, labels=[f"weighted λ={lam:g}" for lam in lams], color="displacement",
+                          reference=fine, clim=moved_range(res[1], fine), view=view, size=size)
     path = out / "fig5_cage_subdivision_weights.png"
-    kb = save_small(path, img) / 1e3
+    kb = save_small(path, side_by_side(weights, moved)) / 1e3
     c = cage.face_count_by_size()
+    far = ", ".join(f"{np.linalg.norm(r.vertices - fine.vertices, axis=1).max() / fine.diagonal:.3f}" for r in res)
     return (f"{path.name} ({kb:.0f} KB): cage {cage.n_vertices} vertices ({c.get(3, 0)} tri, {c.get(4, 0)} quad, "
-            f"{c.get(5, 0)} pentagons), {int(w.sum())} weighted; Catmull-Clark ×3: {fine.n_vertices} vertices")
+            f"{c.get(5, 0)} pentagons), {int(w.sum())} weighted; Catmull-Clark ×3: {fine.n_vertices} vertices; "
+            f"max move {far} (× diagonal)")
 
 
-def figure6_smooth_enhance(meshes: Path, out: Path) -> str:
+def figure6_smooth_enhance(meshes: list[Path], out: Path) -> str:
     """The open rook cage (triangles + quads, open base): Catmull–Clark ×2, smoothing
     λ=60, λ_b=12, then enhancement λ=−200, λ_b=12. The last two are coloured by how far
     each step moved the surface along its normal (blue inwards, red outwards)."""
     cage = load(meshes, "rook_cage_hybrid_open")
-    cc = subdivide(cage, 2)
+    cc = sf.subdivide(cage, 2)
     smooth = sf.flow(cc, 60.0, lam_border=12.0)
     enh = sf.flow(smooth, -200.0, lam_border=12.0)
     img = render_meshes(
@@ -183,7 +181,7 @@ def half_triangulated(quads: sf.Mesh, seed: int = 7) -> sf.Mesh:
     return sf.Mesh.from_csr(quads.vertices, sizes, np.r_[keep.ravel(), tris.ravel()])
 
 
-def figure7_tri_quad_mixed(meshes: Path, out: Path) -> str:
+def figure7_tri_quad_mixed(meshes: list[Path], out: Path) -> str:
     """λ=7, 2 iterations on spot_tri, spot_quad and a randomly half-triangulated spot_quad
     (the same vertices): the results look alike. Top: inputs with their edges; bottom:
     results coloured by their displacement along the input normals."""
@@ -210,9 +208,10 @@ def figure7_tri_quad_mixed(meshes: Path, out: Path) -> str:
             f"three results {gap / quad.diagonal:.4f} (× diagonal)")
 
 
-def figure8_camel(meshes: Path, out: Path) -> str:
+def figure8_camel(meshes: list[Path], out: Path) -> str:
     """Camel: λ = −30, −100, −400 (top row); weights from height thresholds and weighted
-    enhancement of the legs (λ=−50, 2 iterations) and of the head and neck (λ=−200)."""
+    enhancement of the legs (λ=−50, 2 iterations) and of the head and neck (λ=−500), the two
+    results coloured by how far they moved along the camel's normals."""
     camel = load(meshes, "camel_tri")
     V = camel.vertices
     lams = (-30.0, -100.0, -400.0)
@@ -221,50 +220,54 @@ def figure8_camel(meshes: Path, out: Path) -> str:
     head_w = height_weights(V[:, 1], 0.02, 0.12) * height_weights(V[:, 2], 0.10, 0.20)  # high and in front
     legs_m, head_m = camel.with_weights(legs_w), camel.with_weights(head_w)
     legs = sf.flow(legs_m, -50.0, iterations=2, weights="weight")
-    head = sf.flow(head_m, -200.0, weights="weight")
-    img = render_meshes(
-        [camel, *top, legs_m, legs, head_m, head], None, grid=(2, 4),
-        labels=["camel", *(f"λ={lam:g}" for lam in lams), "weights: legs", "legs: λ=-50, 2 iterations",
-                "weights: head and neck", "head and neck: λ=-200"],
-        color=["none"] * 4 + ["weights", "none", "weights", "none"], view=(60, 12), size=(290, 290),
-        framing="rows")
+    head = sf.flow(head_m, -500.0, weights="weight")
+    size, view = (290, 290), (60, 12)
+    row1 = render_meshes([camel, *top], None, labels=["camel", *(f"λ={lam:g}" for lam in lams)], color="none",
+                         view=view, size=size)
+    weights = render_meshes([legs_m, head_m], None, labels=["weights: legs", "weights: head and neck"],
+                            color="weights", view=view, size=size)
+    moved = render_meshes([legs, head], None, labels=["legs: λ=-50, 2 iterations", "head and neck: λ=-500"],
+                          color="displacement", reference=camel, view=view, size=size)
     path = out / "fig8_camel.png"
-    kb = save_small(path, img) / 1e3
+    kb = save_small(path, np.vstack([row1, side_by_side(weights, moved)])) / 1e3
+    far = [np.linalg.norm(m.vertices - V, axis=1).max() / camel.diagonal for m in (legs, head)]
     return (f"{path.name} ({kb:.0f} KB): {camel.n_vertices} vertices; weighted vertices: legs "
-            f"{int((legs_w > 0).sum())}, head and neck {int((head_w > 0).sum())}")
+            f"{int((legs_w > 0).sum())}, head and neck {int((head_w > 0).sum())}; max move legs {far[0]:.3f}, "
+            f"head and neck {far[1]:.3f} (× diagonal)")
 
 
-def figure9_brushes(meshes: Path, out: Path) -> str:
-    """FIGURE 9: one stroke along Spot's back with the shape-enhancement brush (section 4.3,
-    λ=−30 per dab) and with an inflate brush (each dab moves along the vertex normals); colours
-    show how far each vertex moved. The enhancement brush exaggerates the shape that is there
-    (ridges grow, hollows deepen); inflating swells everything under the stroke alike."""
-    spot = load(meshes, "spot_quad")
+def figure9_brushes(meshes: list[Path], out: Path) -> str:
+    """FIGURE 9: one stroke along Spot's back and rump with the shape-enhancement brush (section 4.3,
+    λ=−30 per dab) and with an inflate brush (each dab moves along the vertex normals), seen from the
+    front Spot faces (−z, the bundled example's); colours show how far each vertex moved along its
+    normal, each brush over its own range.  The enhancement brush exaggerates the shape that is there
+    (the rump and the shoulders rise, the dip between them deepens); inflating swells everything
+    under the stroke alike."""
+    from shapeflow.examples import FRONT
+
+    spot = load(meshes, "spot_quad").with_metadata(front=FRONT["spot"])
     V = spot.vertices
-    # a stroke along the back (the head lies towards −z): the highest vertex of each slice
-    stroke = []
-    for z in np.linspace(0.15, 0.7, 8):
-        sl = np.flatnonzero(np.abs(V[:, 2] - z) < 0.04)
-        stroke.append(V[sl[np.argmax(V[sl, 1])]])
-    stroke = np.array(stroke)
-    radius = 0.15
+    # a stroke along the back to the rump (the head lies towards −z): the highest vertex of each slice
+    slices = [np.flatnonzero(np.abs(V[:, 2] - z) < 0.04) for z in np.linspace(0.3, 0.95, 8)]
+    stroke = np.array([V[sl[np.argmax(V[sl, 1])]] for sl in slices])
+    radius = 0.2
     enh = sf.Brush(spot, lam=-30.0, radius=radius, falloff="smooth")
     enh.stroke(stroke)
     inf = sf.InflateBrush(spot, strength=0.06, radius=radius, falloff="smooth")
     inf.stroke(stroke)
-    img = render_meshes(
-        [spot, enh.mesh, inf.mesh], None, grid=(1, 3),
-        labels=["Spot", "enhancement brush, λ=-30", "inflate brush"],
-        color=["none", "displacement", "displacement"], reference=[spot, spot, spot],
-        view=(-60, 25), size=(320, 300))
+    size, view = (320, 300), (50, 35)
+    panels = [render_meshes([spot], None, labels=["Spot"], color="none", view=view, size=size)]
+    for brush, label in ((enh, "enhancement brush, λ=-30"), (inf, "inflate brush")):
+        panels.append(render_meshes([brush.mesh], None, labels=[label], color="displacement", reference=spot,
+                                    clim=moved_range(brush.mesh, spot), view=view, size=size))
     path = out / "fig9_brushes.png"
-    kb = save_small(path, img) / 1e3
-    moved = [np.linalg.norm(b.vertices - V, axis=1) for b in (enh, inf)]
-    return (f"{path.name} ({kb:.0f} KB): {len(stroke)} stroke points; max move enhance "
+    kb = save_small(path, side_by_side(*panels)) / 1e3
+    moved = [np.linalg.norm(b.mesh.vertices - V, axis=1) for b in (enh, inf)]
+    return (f"{path.name} ({kb:.0f} KB): {len(stroke)} stroke points, radius {radius:g}; max move enhance "
             f"{moved[0].max():.4f}, inflate {moved[1].max():.4f} (diagonal {spot.diagonal:.3f})")
 
 
-def figure10_brush_speed(meshes: Path, out: Path) -> str:
+def figure10_brush_speed(meshes: list[Path], out: Path) -> str:
     """FIGURE 10: sculpted vertices per second by dab size and model size, plotted from the output of
     ``python benchmarks/bench_brush.py --json benchmarks/results/brush.json`` (medians of 100 dabs per
     case), with the paper's 2012 figures (800 vertices in 0.1 s, 2,600 in 0.5 s) for scale."""
@@ -302,7 +305,7 @@ def figure10_brush_speed(meshes: Path, out: Path) -> str:
     return f"{path.name} ({kb:.0f} KB): {len(rows)} cases; slowest {slow / 1e3:.0f}K vertices/s"
 
 
-def figure11_normalisation(meshes: Path, out: Path) -> str:
+def figure11_normalisation(meshes: list[Path], out: Path) -> str:
     """Spot scaled so that its mean edge length is 1 (×1) and 4 times larger (×4); λ=−50 with the
     normalised operator (eq. 10, the default) and the area-normalised one (eq. 9,
     normalized=False). Each row is framed with one camera, so sizes compare within a row."""
@@ -342,7 +345,7 @@ def bend(V: np.ndarray, angle_deg: float, pivot=(0.0, 0.3, 0.0), band=(-0.1, 0.1
     return (1.0 - t) * V + t * ((V - p) @ R.T + p), R
 
 
-def figure12_poses(meshes: Path, out: Path) -> str:
+def figure12_poses(meshes: list[Path], out: Path) -> str:
     """FIGURE 12: the same weighted enhancement (λ=−60, weights 1 on the head, ramping to 0 towards the
     neck and throat) on three poses of Spot made by bending the neck (0°, +30°, −30°, linear-blend skinning).
     The operator is intrinsic, and every vertex sharing a face with a weighted one moves rigidly, so
@@ -437,7 +440,7 @@ def flatness(P: np.ndarray) -> float:
     return float(np.abs((P - c) @ np.linalg.svd(P - c)[2][2]).max())
 
 
-def figure13_hard_surface(meshes: Path, out: Path) -> str:
+def figure13_hard_surface(meshes: list[Path], out: Path) -> str:
     """A hexagonal nut with a countersunk round hole and chamfered rims (quads and triangles, built here):
     plain enhancement bends its flat faces and straight edges; feature-aware enhancement (edges bent by
     more than 30°, found at the input) keeps them flat and straight while the hole, a round part, still
@@ -474,7 +477,7 @@ def crease_block() -> tuple[sf.Mesh, np.ndarray, np.ndarray, str]:
     caption for them."""
     box = sf.Mesh([[x, y, z] for x in (-1.5, 1.5) for y in (-1.0, 1.0) for z in (0.0, 1.2)],
                   [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]])
-    cage = subdivide(box, 1, scheme="simple")
+    cage = sf.subdivide(box, 1, scheme="simple")
     E = cage.topology.edges
     V = cage.vertices
     end_x, end_y = np.abs(V[:, 0]) == 1.5, np.abs(V[:, 1]) == 1.0          # on the block's sides
@@ -509,15 +512,15 @@ def blender_subdivision(cage: sf.Mesh, levels: int, pairs, values) -> tuple[sf.M
         return sf.Mesh.from_csr(d["V"], d["fs"], d["fi"]), str(d["version"])
 
 
-def figure14_creases(meshes: Path, out: Path) -> str:
+def figure14_creases(meshes: list[Path], out: Path) -> str:
     """Creased Catmull–Clark subdivision (3 levels) of a block cage: shapeflow's
-    ``subdivide(cage, 3, creases=...)`` beside Blender's Subdivision Surface modifier with the same
+    ``sf.subdivide(cage, 3, creases=...)`` beside Blender's Subdivision Surface modifier with the same
     creases (``crease_edge``), and the distance from each of shapeflow's points to Blender's."""
     from scipy.spatial import cKDTree
 
     cage, pairs, values, what = crease_block()
     levels = 3
-    ours = subdivide(cage, levels, creases=(pairs, values))
+    ours = sf.subdivide(cage, levels, creases=(pairs, values))
     theirs, version = blender_subdivision(cage, levels, pairs, values)
     dist, j = cKDTree(theirs.vertices).query(ours.vertices)
     if np.unique(j).size != j.size or theirs.n_vertices != ours.n_vertices:
@@ -555,7 +558,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description="Regenerate docs/img/ (the pictures of docs/gallery.md and the README).")
     ap.add_argument("figures", nargs="*", metavar="FIGURE",
                     help=f"which figures ({', '.join(FIGURES)}; default all)")
-    ap.add_argument("--shared", help="folder holding meshes/ (default ../shared beside the repository)")
+    ap.add_argument("--shared", help="folder holding meshes/ for the meshes the repository does not carry (the "
+                                     "camel; default: $SHAPEFLOW_SHARED, or shared/ in or beside the repository)")
     ap.add_argument("--out", default=str(HERE / "img"), help="output folder (default docs/img)")
     ap.add_argument("--blender-python", default=os.environ.get("SHAPEFLOW_BLENDER_PYTHON"), metavar="PYTHON",
                     help="a Python with bpy 5.0.1 for fig14's reference (default: this one, if it has bpy)")
@@ -569,7 +573,7 @@ def main(argv=None) -> int:
         print("rendering is not available: pip install 'shapeflow[render]'", file=sys.stderr)
         return 1
     shared = shared_dir(a.shared)
-    meshes = None if shared is None else shared / "meshes"
+    meshes = [REPOSITORY_MESHES, BUNDLED_MESHES] + ([shared / "meshes"] if shared is not None else [])
     if a.blender_python:
         BLENDER_PYTHON.append(a.blender_python)
     elif importlib.util.find_spec("bpy") is not None:

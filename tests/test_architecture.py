@@ -15,6 +15,7 @@
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
@@ -291,3 +292,90 @@ def test_the_public_api_is_typed():
         if sig.return_annotation is inspect.Signature.empty and not name.endswith("__init__"):
             bad.append(f"{name} -> ?")
     assert not bad, bad
+
+
+#: the messages of the per-vertex weights check: raised in ``mesh/weights.py`` alone
+WEIGHT_CHECK_TEXTS = ("must lie in [0, 1]; vertex", "weight of vertex", ", outside [0, 1] ")
+
+
+def raised_texts(path: Path) -> str:
+    """The string pieces of every ``raise`` statement of a module (f-strings' literal parts too)."""
+    pieces = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Raise):
+            pieces += [c.value for c in ast.walk(node) if isinstance(c, ast.Constant) and isinstance(c.value, str)]
+    return "\n".join(pieces)
+
+
+def test_the_weights_check_is_written_once():
+    """Every entry point takes weights through ``shapeflow.mesh.weights`` (flow, brushes, studio, the
+    ``weight`` attribute, weight files, the commands): no other module raises the check's messages."""
+    home = SRC / "mesh" / "weights.py"
+    assert all(t in raised_texts(home) for t in WEIGHT_CHECK_TEXTS)
+    bad = [f"{p.relative_to(ROOT)}: {t!r}" for _, p in modules() if p != home
+           for t in WEIGHT_CHECK_TEXTS if t in raised_texts(p)]
+    assert not bad, "\n".join(bad)
+
+
+#: modules that hold kernels: each family's NumPy/SciPy reference (``<package>/kernels.py``) and its
+#: numba implementation (``<package>/compiled*.py``)
+KERNEL_MODULE = re.compile(r"(^|/)(kernels|compiled\w*)\.py$")
+#: modules that may still look at the compiled modules themselves: path -> reason
+KERNEL_CHOICE_EXCEPTIONS = {
+    "linalg/blas.py": "split_routines finds LAPACK's pointers for the compiled split solver through numba's "
+                      "cython lookup (only the numba implementation of the local family calls it)",
+    "commands/common.py": "note_compiling says a first run compiles: it looks for numba's cache files of the "
+                          "compiled modules, and whether the current settings run compiled at that size",
+}
+
+
+def kernel_choices(name: str, path: Path):
+    """Where a module chooses a kernel's implementation itself: ``accel.compiled(...)`` or
+    ``.uses_compiled(...)``, an import of a compiled module or of numba, or a compiled module's name
+    in a string (``importlib``)."""
+    tree = ast.parse(path.read_text())
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
+                and node.func.attr in ("compiled", "uses_compiled"):
+            yield node.lineno, ast.unparse(node.func)
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            mods = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
+            if any(m.split(".")[0] == "numba" for m in mods):
+                yield node.lineno, "imports numba"
+        elif isinstance(node, ast.Constant) and isinstance(node.value, str) \
+                and re.search(r"\.compiled\b", node.value) and "\n" not in node.value:
+            yield node.lineno, f"names {node.value!r}"
+    for target, line, _ in imported_modules(name, path):
+        if any(part.startswith("compiled") for part in target.split(".")[1:]):
+            yield line, f"imports {target}"
+
+
+def test_kernels_are_chosen_through_accel_kernels_alone():
+    """No module outside ``accel/`` and the kernel modules picks between a compiled kernel and its NumPy
+    twin: they call ``accel.kernels(family, size)`` and its methods (the listed exceptions aside)."""
+    from shapeflow import accel
+
+    assert not hasattr(accel, "compiled")
+    bad, seen = [], set()
+    for name, path in modules():
+        rel = path.relative_to(SRC).as_posix()
+        if rel.startswith("accel/") or KERNEL_MODULE.search(rel):
+            continue
+        found = list(kernel_choices(name, path))
+        if rel in KERNEL_CHOICE_EXCEPTIONS:
+            seen.add(rel) if found else None
+            continue
+        bad += [f"{path.relative_to(ROOT)}:{line}: {what}" for line, what in found]
+    assert not bad, "\n".join(bad)
+    assert seen == set(KERNEL_CHOICE_EXCEPTIONS), "stale exceptions: " + ", ".join(set(KERNEL_CHOICE_EXCEPTIONS) - seen)
+
+
+def test_the_kernel_rule_sees_the_old_branching(tmp_path):
+    """The rule above finds each way call sites used to choose (so it cannot pass by not looking)."""
+    p = tmp_path / "m.py"
+    p.write_text("from .. import accel\nfrom .compiled import edge_data\nimport numba\n"
+                 "fast = accel.compiled('mesh', 10)\nok = accel.current().uses_compiled(10)\n"
+                 "mod = importlib.import_module('shapeflow.mesh.compiled')\n")
+    found = [what for _, what in kernel_choices("mesh.m", p)]
+    assert found == ["imports numba", "accel.compiled", "accel.current().uses_compiled",
+                     "names 'shapeflow.mesh.compiled'", "imports mesh.compiled.edge_data"], found

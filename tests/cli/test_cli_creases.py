@@ -55,9 +55,9 @@ def test_subdivide_takes_the_file_s_tags_and_equals_the_library(creased, tmp_pat
     out = tmp_path / "out.obj"
     code, _, err = run_cli(["subdivide", path, out, "--levels", levels], capsys)
     assert code == 0, err
-    assert re.fullmatch(r"subdivide: 8 vertices, 6 faces -> \d+ vertices, \d+ faces \(catmull-clark, \d levels?\) "
-                        r"in \d+\.\d{3} s; 5 creased edges from the file's 't crease' tags \(--no-creases ignores "
-                        r"them\)\n", err), err
+    assert re.fullmatch(r"shapeflow subdivide: 8 vertices, 6 faces -> \d+ vertices, \d+ faces "
+                        r"\(catmull-clark, \d levels?\) in \d+\.\d{3} s; 5 creased edges from the file's 't crease' "
+                        r"tags \(--no-creases ignores them\)\n", err), err
     m = sf.load(path)
     expected = sf.subdivide(m, levels, creases="mesh")
     got = sf.load(out)
@@ -69,6 +69,32 @@ def test_subdivide_takes_the_file_s_tags_and_equals_the_library(creased, tmp_pat
     keep = c > 0
     assert np.array_equal(pairs, e_pairs[keep]) and np.array_equal(s, np.minimum(10 * c[keep] ** 2, 10.0))
     assert sorted(set(np.round(s, 12))) == sorted({round(x, 12) for x in (max(2.5 - levels, 0), 10.0)} - {0.0})
+
+
+def test_tag_vertex_numbers_count_from_0_as_opensubdiv_s_faces_from_1(tmp_path, capsys):
+    # OpenSubdiv's tag form 't crease 2/1/0 v w s': v, w index the 'v' lines from 0 while 'f' counts from 1
+    cube = ("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 1 1 1\nv 0 1 1\n"
+            "f 1 4 3 2\nf 5 6 7 8\nf 1 2 6 5\nf 2 3 7 6\nf 3 4 8 7\nf 4 1 5 8\n"
+            "t crease 2/1/0 0 1 2.0\nt crease 2/1/0 1 2 10\n")
+    path = tmp_path / "cube.obj"
+    path.write_text(cube)
+    out = tmp_path / "out.obj"
+    assert run_cli(["subdivide", path, out, "-l", "1", "-q"], capsys)[0] == 0
+    plain = sf.Mesh(np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]],
+                             float),
+                    np.array([[0, 3, 2, 1], [4, 5, 6, 7], [0, 1, 5, 4], [1, 2, 6, 5], [2, 3, 7, 6], [3, 0, 4, 7]]))
+    # the edges (0, 1) and (1, 2): the bottom's x = 0..1 at y = 0 and y = 0..1 at x = 1; sharpness s = 10·c²
+    expected = sf.subdivide(plain, 1, creases=([[0, 1], [1, 2]], [np.sqrt(0.2), 1.0]))
+    got = sf.load(out)
+    assert np.array_equal(got.vertices, expected.vertices)
+    # what is written back: tag numbers from 0, faces from 1, read here from the text alone
+    text = out.read_text()
+    faces = [[int(w) - 1 for w in ln.split()[1:]] for ln in text.splitlines() if ln.startswith("f ")]
+    edges = {frozenset((f[i], f[(i + 1) % len(f)])) for f in faces for i in range(len(f))}
+    pairs, s = tags_of(out)
+    assert len(pairs) == 4 and all(frozenset(p) in edges for p in pairs.tolist())
+    assert np.allclose(sorted(s.tolist()), [1.0, 1.0, 10.0, 10.0])       # one level softer; 10 stays infinite
+    assert len(set(pairs.ravel().tolist())) == 5                         # two edges of two halves each: a chain
 
 
 def test_the_written_tags_continue_the_same_surface(creased, tmp_path, capsys):
@@ -204,10 +230,10 @@ def test_render_feature_lines_errors(value, message):
     assert str(info.value) == message
 
 
-def _red(png) -> int:
+def _lines(png) -> int:
+    """Pixels of the feature lines (black) on the clay surface (no colour field): the near-black ones."""
     img = np.asarray(__import__("PIL.Image", fromlist=["Image"]).open(png).convert("RGB")).astype(int)
-    r, g, b = img[..., 0], img[..., 1], img[..., 2]
-    return int(((r > 150) & (r - g > 90) & (r - b > 90)).sum())
+    return int((img.max(axis=2) < 40).sum())
 
 
 def test_render_draws_the_feature_lines(creased, tmp_path, capsys):
@@ -222,5 +248,5 @@ def test_render_draws_the_feature_lines(creased, tmp_path, capsys):
         code, _, err = run_cli(["render", path, png, "--color", "none", "--view", "iso", "--size", "240x200", "-q",
                                 *extra], capsys)
         assert code == 0, err
-        shots[name] = _red(png)
+        shots[name] = _lines(png)
     assert shots["none"] == 0 and shots["angle"] > 200 and 0 < shots["marked"] < shots["angle"]

@@ -5,6 +5,7 @@ moves nothing says why (and fails with --strict); family --to includes its end o
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from types import SimpleNamespace
@@ -17,8 +18,8 @@ from shapeflow.cli import build_parser, main
 from shapeflow.errors import ParameterError
 
 #: the one line a command adds on a machine whose numba cache is still empty (a fresh clone)
-COMPILING = ("shapeflow: compiling the fast kernels (first run on this machine only; later runs load them "
-             "from numba's cache)\n")
+COMPILING = re.compile(r"shapeflow \w+: compiling the fast kernels \(first run on this machine only; later runs "
+                       r"load them from numba's cache\)\n")
 
 
 def run(capsys, *args):
@@ -26,7 +27,7 @@ def run(capsys, *args):
     on what ran before on this machine, not on the command."""
     code = main([str(a) for a in args])
     cap = capsys.readouterr()
-    return code, cap.out, cap.err.replace(COMPILING, "")
+    return code, cap.out, COMPILING.sub("", cap.err)
 
 
 @pytest.mark.parametrize("args,line", [
@@ -57,7 +58,14 @@ def run(capsys, *args):
     (["enhance", "example:spot", "{out}", "--strength", "inf"],
      "shapeflow enhance: error: --strength must be finite, got inf"),
     (["enhance", "example:spot", "{out}", "--strength", "-2.5"],
-     "shapeflow enhance: error: --strength must be >= 0, got -2.5"),
+     "shapeflow enhance: error: --strength must be >= 0, got -2.5 (enhance's λ is -strength; to smooth, use "
+     "'shapeflow smooth --strength 2.5' or 'shapeflow flow --lambda 2.5')"),
+    (["enhance", "example:spot", "{out}", "-s", "-50"],
+     "shapeflow enhance: error: --strength must be >= 0, got -50 (enhance's λ is -strength; to smooth, use "
+     "'shapeflow smooth --strength 50' or 'shapeflow flow --lambda 50')"),
+    (["smooth", "example:spot", "{out}", "-s", "-1e3"],
+     "shapeflow smooth: error: --strength must be >= 0, got -1000 (smooth's λ is +strength; to enhance, use "
+     "'shapeflow enhance --strength 1000' or 'shapeflow flow --lambda -1000')"),
     (["smooth", "example:spot", "{out}", "--strength", "nan"],
      "shapeflow smooth: error: --strength must be finite, got nan"),
     (["flow", "example:spot", "{out}", "--lambda", "-inf"], "shapeflow flow: error: --lambda must be finite, got -inf"),

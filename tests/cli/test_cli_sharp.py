@@ -245,13 +245,18 @@ def test_info_counts_sharp_marked_and_creased_edges(tmp_path, capsys):
 def test_info_tells_a_malformed_crease_tag_as_a_warning(box, tmp_path, capsys):
     path = box[0]
     bad = tmp_path / "bad.obj"
-    bad.write_text(path.read_text() + "t crease 3/1 0 1 2.0\n")
+    bad.write_text(path.read_text() + "t crease 1/1 0 2.0\n")         # well formed, but no edge: one vertex
     code, out, _ = run_cli(["info", bad], capsys)
     assert code == 0
-    assert f"  warning: {bad}: 't crease' tags: 't crease 3/1' tag 0 does not list a chain of at least 2 " \
+    assert f"  warning: {bad}: 't crease' tags: 't crease 1/1' tag 0 does not list a chain of at least 2 " \
            "vertices and one sharpness or one per edge" in out.splitlines()
     code, _, err = run_cli(["smooth", bad, tmp_path / "o.obj", "-s", "1", "--keep-marked-edges"], capsys)
-    assert code == 2 and err.startswith(f"shapeflow smooth: error: {bad}: 't crease' tags: 't crease 3/1' tag 0")
+    assert code == 2 and err.startswith(f"shapeflow smooth: error: {bad}: 't crease' tags: 't crease 1/1' tag 0")
+    worse = tmp_path / "worse.obj"                                      # a tag its own counts contradict
+    worse.write_text(path.read_text() + "t crease 3/1 0 1 2.0\n")
+    code, _, err = run_cli(["info", worse], capsys)
+    assert code == 2 and err == f"shapeflow info: error: {worse}: line {len(path.read_text().splitlines()) + 1}: " \
+                                "'t crease 3/1' declares 4 values; the line has 3\n"
 
 
 # --- messages -------------------------------------------------------------------------------------

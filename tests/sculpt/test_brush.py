@@ -13,7 +13,7 @@ from meshgen import cube_sphere, grid, icosphere, ngon_disk, random_rotation
 import shapeflow as sf
 from shapeflow.cli import main
 from shapeflow.geometry import vertex_normals
-from shapeflow.operators.weights import assemble as _assemble
+from shapeflow.operators.cotan import assemble as _assemble
 
 
 def _pair_weights(mesh, scheme="tqlbo"):
@@ -486,16 +486,19 @@ def test_spatial_index_stays_exact_as_vertices_move():
     assert b._far_count > 0 or b.tree_rebuilds > 1
 
 
-@pytest.mark.skipif(not sf.accel.available(), reason="numba (the 'fast' extra) not installed")
-def test_cell_grid_query_is_exact():
-    """The compiled grid finds exactly the points within r (moved points too), whatever the
-    radius relative to the cell size, with centres inside and far outside the grid."""
-    from shapeflow.sculpt.grid import CellGrid as _CellGrid
-
+@pytest.mark.parametrize("kernels", ["force", "off"])
+def test_spatial_index_query_is_exact(kernels):
+    """Both spatial indexes of the sculpt kernels (the compiled grid, SciPy's k-d tree) find exactly the
+    points within r (moved points too), whatever the radius relative to the grid's cells, with centres
+    inside and far outside the grid."""
+    if kernels == "force" and not sf.accel.available():
+        pytest.skip("numba (the 'fast' extra) not installed")
+    with sf.accel.use(kernels=kernels):
+        family = sf.accel.kernels("sculpt", 3000)
     rng = np.random.default_rng(9)
     P = rng.normal(size=(3000, 3)) * [1.0, 2.0, 0.3]
     for h in (1e-9, 0.05, 0.4, 50.0):
-        g = _CellGrid(P, h)
+        g = family.spatial_index(P, h)
         tau = 0.01
         V = P + rng.uniform(-1, 1, P.shape) * tau / np.sqrt(3)   # moved less than tau
         far = np.zeros(len(P), bool)

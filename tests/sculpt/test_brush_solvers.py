@@ -218,7 +218,9 @@ def test_a_fallback_from_the_split_solver_is_reported(monkeypatch):
 
     if not sf.accel.available():
         pytest.skip("the split solver needs numba (the 'fast' extra)")
-    monkeypatch.setattr(B, "split_routines", lambda: None)   # as on a SciPy without OpenBLAS's setter
+    from shapeflow.linalg import compiled_split
+
+    monkeypatch.setattr(compiled_split, "split_routines", lambda: None)   # as on a SciPy without OpenBLAS's setter
     monkeypatch.setitem(FALLBACKS, "split", "the split solver is unavailable here")
     mesh = sf.load_example("spot")
     brush = sf.Brush(mesh, lam=-20.0, radius=0.9)

@@ -701,10 +701,10 @@ def test_cli_end_to_end(tmp_path, capsys):
     assert out.n_vertices == ref.n_vertices and out.n_faces == ref.n_faces
     np.testing.assert_allclose(out.vertices, ref.vertices, atol=1e-5)
     np.testing.assert_allclose(np.load(tmp_path / "w_out.npy"), ref.weights, atol=1e-12)
-    # a weights file of the wrong length is a clean error
+    # a weights file of the wrong length is a clean error, as for every command that reads weights
     np.savetxt(tmp_path / "short.txt", w[:3])
     assert main(["subdivide", str(src), str(dst), "--weights", str(tmp_path / "short.txt")]) == 2
-    assert "3 values" in capsys.readouterr().err
+    assert "short.txt: has 3 weights but the mesh has 12 vertices" in capsys.readouterr().err
 
 
 # --------------------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""The acceleration backend: which compiled kernels run, from what size, and the memory-page policy.
+"""The acceleration backend: which implementation of each kernel runs, from what size, and the memory-page policy.
 
 One :class:`Backend` object holds every acceleration setting.  The one in
 force is read with :func:`current`; :func:`use` changes it for a ``with``
@@ -12,7 +12,8 @@ Settings
 ``kernels``
     ``"auto"`` (default): the compiled twins (the ``fast`` extra: numba) run
     on problems of at least ``min_size`` vertices or unknowns when numba is
-    installed; ``"off"``: NumPy/SciPy only; ``"force"``: compiled at every
+    installed (the brush's kernel families, whose work is a dab's whatever the
+    mesh, at every size); ``"off"``: NumPy/SciPy only; ``"force"``: compiled at every
     size (the test suite runs that way in CI, so the compiled paths are
     checked on small meshes too).  Every compiled kernel has a NumPy/SciPy
     twin computing the same formulas in the same order (the compiled CG's
@@ -42,11 +43,14 @@ Settings
     too; that is why it is opt-in for the library.  The ``shapeflow``
     command turns it on for its own process.
 
-Compiled kernels
-----------------
-Each package with hot loops has a ``compiled`` module beside its NumPy code
-(``shapeflow.mesh.compiled``, ``geometry``, ``operators``, ``linalg``,
-``flow``, ``sculpt``), loaded only through :func:`compiled`.  Kernels are
+Kernels
+-------
+Each package with hot loops defines a *kernel family* in ``<package>/kernels.py``: a class
+whose methods are the NumPy/SciPy kernels.  :func:`kernels` gives the implementation that
+runs a problem of a given size — the reference, or an accelerator's subclass
+(:mod:`shapeflow.accel.registry`); callers call its methods and never branch on the backend.
+The numba accelerator (:mod:`shapeflow.accel.numba_backend`) implements every family in the
+package's ``compiled`` module.  Its kernels are
 compiled on first use and cached on disk (``cache=True``).  Large arrays are
 allocated by NumPy in the plain-Python wrappers (:func:`zeros`) and filled by
 the compiled functions.  Indices read from arrays are cast to ``np.uint64``
@@ -54,6 +58,13 @@ before they index another array: numba tests every signed index for a
 negative value, and these gathers are the inner loops (measured: CSR product
 ~15% faster, corner assembly ~25%).  Only indices that cannot be negative
 are cast.
+
+Processes
+---------
+A process forked (``os.fork``, ``multiprocessing``'s ``fork`` start method) after its parent ran
+a parallel kernel on numba's OpenMP layer cannot start OpenMP threads: GNU OpenMP would end it.
+shapeflow notices the fork and runs the NumPy/SciPy twins there, saying so once in a log line;
+processes started with ``spawn`` or ``forkserver`` keep the compiled kernels.
 
 Environment (read once, for the process default): ``SHAPEFLOW_KERNELS`` =
 ``0``/``off``, ``1``/``auto`` or ``force``; ``SHAPEFLOW_SMALL_PAGES=1``.
@@ -64,8 +75,8 @@ Examples
 >>> accel.current().kernels in ("auto", "off", "force")
 True
 >>> with accel.use(kernels="off"):
-...     accel.compiled("operators", 10**9) is None
-True
+...     accel.kernels("operators", 10**9).backend
+'numpy'
 """
 
 from __future__ import annotations
@@ -74,22 +85,20 @@ import contextlib
 import contextvars
 import dataclasses
 import functools
-import importlib
 import logging
 import os
 import sys
 import threading
 
 from ..errors import ParameterError
+from .registry import FAMILIES, Accelerator, Family, select
 
-__all__ = ["Backend", "current", "use", "enabled", "set_default", "numba_available", "available", "compiled",
-           "sequential",
-           "heavy", "small_pages", "zeros", "KERNEL_MODES", "CONSUMERS", "thread_count", "usable_cores",
+__all__ = ["Backend", "current", "use", "enabled", "set_default", "numba_available", "numba_usable", "available",
+           "kernels", "Family", "Accelerator", "FAMILIES", "apply_call_threads", "sequential",
+           "heavy", "small_pages", "zeros", "KERNEL_MODES", "thread_count", "usable_cores",
            "other_runnable"]
 
 KERNEL_MODES = ("auto", "off", "force")
-#: the packages with a ``compiled`` module of kernels (``shapeflow.<name>.compiled``)
-CONSUMERS = ("mesh", "geometry", "operators", "linalg", "flow", "sculpt")
 
 _log = logging.getLogger("shapeflow")
 
@@ -120,7 +129,7 @@ class Backend:
             return False
         if self.kernels == "auto" and size < (self.min_size if min_size is None else min_size):
             return False
-        return numba_available()
+        return numba_usable()
 
 
 def _from_environment() -> Backend:
@@ -180,28 +189,61 @@ def numba_available() -> bool:
     return True
 
 
+def numba_usable() -> bool:
+    """numba is installed and may start its threads in this process (see :func:`_forked_after_openmp`)."""
+    return numba_available() and not _forked_after_openmp()
+
+
 def available() -> bool:
     """True when numba is installed and the current backend does not switch the kernels off."""
     return current().kernels != "off" and numba_available()
 
 
-@functools.cache
-def _module(consumer: str):
-    if consumer not in CONSUMERS:
-        raise ValueError(f"no compiled kernels for {consumer!r}")
-    return importlib.import_module(f"shapeflow.{consumer}.compiled")
+# --------------------------------------------------------------------------
+# fork: GNU OpenMP cannot run in a child forked after it ran in the parent
+# --------------------------------------------------------------------------
+
+_fork = {"after_openmp": False, "told": False}
 
 
-def compiled(consumer: str, size: int, *, min_size: int | None = None):
-    """The compiled kernels of ``shapeflow.<consumer>`` when the current backend runs a problem
-    of ``size`` compiled, else None (use the NumPy/SciPy twin)."""
-    if not current().uses_compiled(size, min_size=min_size):
-        return None
-    mod = _module(consumer)
-    k = _call_threads.get()
-    if k is not None:          # numba may have been imported just now, inside a heavy call
-        _apply_threads(k)
-    return mod
+def _after_fork_in_child() -> None:
+    """In a child made by ``os.fork`` (``multiprocessing``'s default start method on Linux before
+    Python 3.14): if the parent has run a parallel kernel on numba's OpenMP layer, a parallel
+    kernel here would end the process (libgomp: "fork() called from a process already using GNU
+    OpenMP") and leave a ``multiprocessing.Pool`` waiting for its result forever."""
+    numba = sys.modules.get("numba")
+    if numba is None:
+        return
+    try:
+        layer = numba.threading_layer()
+    except (ValueError, AttributeError):    # no parallel kernel has run: the child may start OpenMP itself
+        return
+    _fork["after_openmp"] = layer == "omp"
+    _fork["told"] = False
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_after_fork_in_child)
+
+
+def _forked_after_openmp() -> bool:
+    """Whether this process was forked after its parent ran OpenMP: its compiled kernels are off
+    (the NumPy/SciPy twins run, same formulas) and a log line says so once."""
+    if not _fork["after_openmp"]:
+        return False
+    if not _fork["told"]:
+        _fork["told"] = True
+        _log.warning("shapeflow: this process was forked after its parent ran numba's OpenMP threads, which "
+                     "cannot run here; the NumPy/SciPy twins of the compiled kernels run instead (start "
+                     "worker processes with the 'spawn' or 'forkserver' method to keep them)")
+    return True
+
+
+def kernels(family: str, size: int) -> Family:
+    """The implementation of the kernel family ``family`` (:data:`FAMILIES`) that runs a problem of
+    ``size`` vertices or unknowns under the current backend: an accelerator's when it is available
+    and takes that size, else the NumPy/SciPy reference (see :mod:`shapeflow.accel.registry`)."""
+    return select(family, size, current())
 
 
 def sequential(kernel):
@@ -325,6 +367,14 @@ def thread_count() -> int:
 
 
 _call_threads: contextvars.ContextVar[int | None] = contextvars.ContextVar("shapeflow_threads", default=None)
+
+
+def apply_call_threads() -> None:
+    """Inside a heavy call, numba's thread count set to the call's (numba may have been imported
+    since the call began); nothing outside one."""
+    k = _call_threads.get()
+    if k is not None:
+        _apply_threads(k)
 
 
 def _apply_threads(k: int) -> None:

@@ -6,6 +6,11 @@ them with these parsers: :class:`CommandParser` (a usage error is one line on st
 :class:`RaisingParser` (a usage error is a :class:`~shapeflow.errors.ParameterError`).  Each
 operation's sub-parser names its options class (``set_defaults(options=FlowOptions)``);
 :func:`options_from` builds it from the parsed values.
+
+An option's value is the word after it when that word is one of its values, even a word that starts
+with '-' (``--front -z``, as ``--front=-z``); an option whose value may be left out
+(:class:`OptionalValue`: ``--feature-lines [DEG|marked]``) takes the next word only if it is one of
+its values, so ``render part.ply --feature-lines out.png`` draws 30° lines into out.png.
 """
 
 from __future__ import annotations
@@ -19,7 +24,7 @@ import sys
 
 from ..errors import ParameterError
 
-__all__ = ["CommandParser", "RaisingParser", "options_from"]
+__all__ = ["CommandParser", "RaisingParser", "OptionalValue", "options_from"]
 
 _NUM = r"(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?|inf|infinity|nan"
 #: numbers written as option values, negative ones included (-5, -1e3, -.5, -inf, -90,10): values, not options
@@ -34,15 +39,70 @@ class CommandParser(argparse.ArgumentParser):
     'shapeflow enhance --help')``, never a usage dump; misspelt commands, options and choices get a
     "did you mean" (difflib); negative numbers such as ``-1e3`` and ``-inf`` are values."""
 
-    def __init__(self, *args, **kw):
+    def __init__(self, *args, intermixed: bool = False, **kw):
         super().__init__(*args, **kw)
         self._negative_number_matcher = _NUMBER
         self._words: list[str] = []
+        #: positionals may come before and after options (``render a.ply --edges b.ply out.png``)
+        self.intermixed = intermixed
+        self._mixing = False
 
     def parse_known_args(self, args=None, namespace=None):
-        self._words = list(sys.argv[1:] if args is None else args)
+        if self._mixing:            # the passes of parse_known_intermixed_args
+            return super().parse_known_args(args, namespace)
+        self._words = self._with_values(list(sys.argv[1:] if args is None else args))
         _ACTIVE.set(self)
-        return super().parse_known_args(args, namespace)
+        if not self.intermixed:
+            return super().parse_known_args(self._words, namespace)
+        self._mixing = True
+        try:
+            return super().parse_known_intermixed_args(self._words, namespace)
+        finally:
+            self._mixing = False
+
+    def _with_values(self, words: list[str]) -> list[str]:
+        """``words`` with each option's value joined to it (``--front -z`` -> ``--front=-z``) where the
+        value is one of the option's (argparse reads a word that starts with '-' as an option), and
+        with an :class:`OptionalValue` given its ``const`` (``--feature-lines=30``) where the next word
+        is none of its values (argparse would take any word)."""
+        out: list[str] = []
+        i = 0
+        while i < len(words):
+            word = words[i]
+            if word == "--" or self._subcommand_word(word):
+                return out + words[i:]
+            action = self._option_action(word)
+            test = _value_test(action) if action is not None else None
+            if test is not None:
+                if i + 1 < len(words) and (test(words[i + 1]) or self._bad_choice(action, words[i + 1])):
+                    out.append(f"{word}={words[i + 1]}")
+                    i += 2
+                    continue
+                if isinstance(action, OptionalValue):
+                    word = f"{word}={action.const}"
+            out.append(word)
+            i += 1
+        return out
+
+    def _bad_choice(self, action: argparse.Action, word: str) -> bool:
+        """A word after an option of choices that starts with '-' and is no option here (``--front -w``):
+        its value, told as none of the choices."""
+        return (action.choices is not None and not isinstance(action, OptionalValue) and word.startswith("-")
+                and len(word) > 1 and self._option_action(word.split("=", 1)[0]) is None)
+
+    def _option_action(self, word: str) -> argparse.Action | None:
+        """The action of ``word`` when it is one of this parser's options written without a value
+        (``--front``, or a unique abbreviation such as ``--fro``)."""
+        if not word.startswith("-") or "=" in word:
+            return None
+        actions = self._option_string_actions
+        if word in actions:
+            return actions[word]
+        if word.startswith("--") and self.allow_abbrev:
+            found = {actions[k] for k in actions if k.startswith(word)}
+            if len(found) == 1:
+                return found.pop()
+        return None
 
     def error(self, message):
         parser = self.teller(message)
@@ -110,6 +170,29 @@ class CommandParser(argparse.ArgumentParser):
         return any(isinstance(a, argparse._SubParsersAction) and word in a.choices for a in self._actions)
 
 
+class OptionalValue(argparse.Action):
+    """An option whose value may be left out (its ``const`` then): the word after it is its value only
+    if ``accepts(word)``, otherwise the option stands alone and the word is left to the rest of the
+    command line (a path, another option)."""
+
+    def __init__(self, option_strings, dest, accepts, **kw):
+        super().__init__(option_strings, dest, nargs="?", **kw)
+        self.accepts = accepts
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        setattr(namespace, self.dest, values)
+
+
+def _value_test(action: argparse.Action):
+    """Whether a word is a value of ``action``: its ``accepts``, or one of its choices; None for an
+    option without either (or one that takes no value, or several)."""
+    if isinstance(action, OptionalValue):
+        return action.accepts
+    if action.choices is not None and action.nargs is None and not isinstance(action, argparse._SubParsersAction):
+        return lambda word: word in action.choices
+    return None
+
+
 def _long(names: str) -> str:
     """'--strength/-s' -> '--strength'."""
     parts = names.split("/")
@@ -117,7 +200,8 @@ def _long(names: str) -> str:
 
 
 def _did_you_mean(word: str, choices) -> str:
-    close = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
+    same = [c for c in choices if c.lower() in (word.lower(), f"+{word.lower()}")]   # -Z, z: too short for difflib
+    close = same or difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
     return f"; did you mean {close[0]}?" if close else ""
 
 

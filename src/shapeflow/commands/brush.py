@@ -204,7 +204,7 @@ def run(o: BrushOptions, source: str, target: str, report: Reporter) -> None:
     weights = kw["weights"]
     t_compile = 0.0
     if note_compiling(report, ("sculpt", "linalg", "mesh", "operators"), operand.n_vertices, min_size=0,
-                      quiet=o.quiet):
+                      quiet=o.quiet, command="brush"):
         t_compile = warm_up_brush()     # compiled now, so the dab timings below are the dabs'
     t0 = time.perf_counter()
     brush = _make_brush(o, operand, stroke, weights, kw)
@@ -226,7 +226,7 @@ def run(o: BrushOptions, source: str, target: str, report: Reporter) -> None:
         from .images import before_after
 
         before_after(o.image, mesh, result, label_after=f"{stroke['brush']} stroke", up=o.image_up, quiet=o.quiet,
-                     report=report, feature_lines=sharp)
+                     report=report, feature_lines=sharp, command="brush")
     if not o.quiet:
         n = len(centers)
         report.message(f"shapeflow brush: {stroke['brush']}, {n} dab{'s' if n != 1 else ''} of radius "

@@ -190,7 +190,7 @@ def warn_degenerate_result(report: Reporter, command: str, lam: float, before, a
 
 
 def note_compiling(report: Reporter, consumers: tuple, size: int, *, min_size: int | None = None,
-                   quiet: bool = False) -> bool:
+                   quiet: bool = False, command: str = "") -> bool:
     """Say once that the compiled kernels are being compiled (the first run on this machine takes
     tens of seconds; later runs load them from numba's cache).  Returns whether it said so."""
     from pathlib import Path
@@ -208,6 +208,6 @@ def note_compiling(report: Reporter, consumers: tuple, size: int, *, min_size: i
         if not any(cache.glob("compiled.*.nbi")):
             missing.append(name)
     if missing:
-        report.message("shapeflow: compiling the fast kernels (first run on this machine only; later runs load "
-                       "them from numba's cache)")
+        report.message(f"shapeflow{' ' + command if command else ''}: compiling the fast kernels (first run on this "
+                       "machine only; later runs load them from numba's cache)")
     return bool(missing)

@@ -73,11 +73,9 @@ def run(o: CurvatureOptions, source: str, target: str, report: Reporter) -> None
         raise ParameterError(f"OUT {target!r}: use .ply (the mesh with a 'curvature' vertex attribute) or "
                              ".npy/.txt (the values alone); OBJ and OFF cannot store vertex attributes")
     if o.image:
-        from ..rendering import require
         from .images import check_png
 
-        check_png(o.image, "--image")
-        require()  # fail before writing anything
+        check_png(o.image, "--image")    # rendering works here: checked before anything is written
     out = resolve_output(source, target, o.force, o.image)
     mesh = load_mesh(source, report)
     h = mean_curvature(mesh, area=o.area)

@@ -23,7 +23,7 @@ from .common import load_mesh, option_names, option_number, progress, save_mesh,
 from .flow import OPTION_NAMES, FlowSettings, add_flow_options
 from .report import Reporter
 
-__all__ = ["FamilyOptions", "member_lambdas", "member_names", "add_parser", "run"]
+__all__ = ["FamilyOptions", "member_lambdas", "member_names", "in_words", "add_parser", "run"]
 
 #: members solved in one batch are held in memory together; above this many
 #: bytes of positions the family is solved in batches (in order of |λ|)
@@ -88,6 +88,21 @@ def add_parser(sub) -> None:
                    help="auto: shared solve where the shift structure holds (default); multishift: "
                         "insist on it; separate: one solve per λ")
     p.set_defaults(options=FamilyOptions)
+
+
+#: the shared solve of a one-iteration family, said without the solver's notation (the report keeps it)
+SHARED_SOLVE = ("one iteration: the members' systems are one matrix plus 1/|λ| on its diagonal, with one "
+                "right-hand side, so one solve serves them all")
+
+
+def in_words(report, *, alone: bool = True) -> str:
+    """A family report's summary for the command line: the shared solve said in words (the report's
+    ``reason`` keeps the notation ``(σI + M) Y = b``), without the member count the line already
+    says when ``alone`` (one batch)."""
+    text = report.summary()
+    if report.path == "multishift":
+        text = text.replace(f"({report.reason})", f"({SHARED_SOLVE})")
+    return text.removeprefix(f"{len(report.lams)} members: ") if alone else text
 
 
 def _retitle(parser, dest: str, **kw) -> None:
@@ -253,7 +268,7 @@ def run(o: FamilyOptions, source: str, target: str, report: Reporter) -> None:
         family_image(o.image, [operand.with_vertices(kept[i]) for i in panels], [lams[i] for i in panels],
                      up=o.image_up, quiet=o.quiet, report=report)
     if not o.quiet:
-        summary = "; ".join(r.summary() for r in reports)
+        summary = "; ".join(in_words(r, alone=len(reports) == 1) for r in reports)
         report.message(f"shapeflow family: {len(lams)} members, λ {lams[0]:g} .. {lams[-1]:g}, "
                        f"{mesh.n_vertices} vertices: {summary}; total {time.perf_counter() - t0:.3f} s "
                        f"-> {outdir}{os.sep}{names[0]} .. {names[-1]}")

@@ -6,6 +6,7 @@ import os
 import time
 from dataclasses import dataclass
 
+from .. import params
 from ..errors import ParameterError
 from .common import (
     load_mesh,
@@ -19,7 +20,7 @@ from .common import (
     welded_for_operator,
 )
 from .features import FeatureSettings, add_feature_options, drawn_edges, feature_kwargs
-from .images import add_image_options
+from .images import add_image_options, check_picture_path
 from .report import Reporter
 
 __all__ = ["FlowSettings", "FlowOptions", "OPTION_NAMES", "add_parsers", "add_flow_options", "run"]
@@ -91,11 +92,18 @@ class FlowOptions(FlowSettings):
     @property
     def signed_lambda(self) -> float:
         """λ: ``--lambda``, or ``--strength`` with the command's sign, checked in the option's own name
-        and sign (``--strength inf``: ``--strength must be finite, got inf``)."""
+        and sign (``--strength inf``: ``--strength must be finite, got inf``); a negative strength
+        names the command and the ``flow`` that do what it asks (``enhance -s -50`` smooths)."""
         if self.command == "flow":
             return option_number("--lambda", self.lam)
         sign = -1.0 if self.command == "enhance" else 1.0
-        return sign * option_number("--strength", self.strength, lo=0.0)
+        s = self.strength
+        if isinstance(s, (int, float)) and -params.LAMBDA_MAX <= s < 0:
+            other = "smooth" if self.command == "enhance" else "enhance"
+            raise ParameterError(f"--strength must be >= 0, got {s:g} ({self.command}'s λ is {'-' if sign < 0 else '+'}"
+                                 f"strength; to {other}, use 'shapeflow {other} --strength {-s:g}' or "
+                                 f"'shapeflow flow --lambda {sign * s:g}')")
+        return sign * option_number("--strength", s, lo=0.0)
 
 
 def add_flow_options(p) -> None:
@@ -164,12 +172,15 @@ def run(o: FlowOptions, source: str, target: str, report: Reporter) -> None:
 
     lam = o.signed_lambda
     out_path = resolve_output(source, target, o.force, o.image)
+    if o.image:
+        check_picture_path(o.image)    # the picture can be drawn, before any work
     t0 = time.perf_counter()
     mesh = load_mesh(source, report, quiet=o.quiet, command=o.command)
     kw = o.flow_kwargs(mesh, source, o.command, report)
     sharp = drawn_edges(mesh, kw) if o.image else None
     operand, kw, restore = welded_for_operator(mesh, kw, o.command, o.quiet, report)
-    note_compiling(report, ("mesh", "operators", "flow", "linalg"), operand.n_vertices, quiet=o.quiet)
+    note_compiling(report, ("mesh", "operators", "flow", "linalg"), operand.n_vertices, quiet=o.quiet,
+                   command=o.command)
     if not o.quiet and operand.n_vertices >= 1_000_000:
         report.message(f"shapeflow {o.command}: solving {o.iterations} implicit step(s) on "
                        f"{operand.n_vertices:,} vertices")

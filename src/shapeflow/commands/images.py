@@ -22,12 +22,16 @@ PANEL = (480, 440)
 
 
 def check_png(path: str, option: str = "output") -> str:
-    """A .png path that can be written (its folder exists...), checked before any work."""
+    """A .png path that can be written (its folder exists...) and rendering that works here (the
+    ``render`` extra, an offscreen OpenGL), checked before any work, so a run that cannot draw its
+    picture writes nothing."""
     from ..io import output_target
+    from ..rendering import require
 
     if not path.lower().endswith(".png"):
         raise ParameterError(f"{option} {path!r} must be a .png file")
     output_target(path)
+    require()
     return path
 
 
@@ -63,11 +67,12 @@ def add_image_options(parser, help: str = "also draw input and result side by si
 
 def before_after(path: str, before, after, *, label_before: str = "input", label_after: str = "result",
                  color="curvature", edges=False, shading="smooth", view=VIEW, up: str = "auto",
-                 quiet: bool = False, report: Reporter | None = None, feature_lines=None) -> None:
+                 quiet: bool = False, report: Reporter | None = None, feature_lines=None, command: str) -> None:
     """Write ``before`` and ``after`` side by side with one camera (and one colour range).
 
     ``edges`` and ``shading`` may be one value or a pair (before, after); ``feature_lines``: vertex
-    pairs drawn as lines on both (:func:`shapeflow.rendering.render_meshes`)."""
+    pairs drawn as lines on both (:func:`shapeflow.rendering.render_meshes`); ``command`` names the
+    command in the line that says where the picture went."""
     from ..rendering import render_meshes
 
     check_picture_path(path)
@@ -75,7 +80,7 @@ def before_after(path: str, before, after, *, label_before: str = "input", label
     render_meshes([before, after], path, labels=[label_before, label_after], color=color, edges=edges,
                   shading=shading, view=view, up=up, size=PANEL, feature_lines=feature_lines)
     if not quiet and report is not None:
-        report.message(f"image -> {path}")
+        report.message(f"shapeflow {command}: image -> {path}")
 
 
 def flow_image(o, before, after, lam: float, report: Reporter, sharp=None) -> None:
@@ -84,7 +89,7 @@ def flow_image(o, before, after, lam: float, report: Reporter, sharp=None) -> No
     what = "smoothed" if lam > 0 else "enhanced"
     label = f"{what}, λ={lam:g}" + (f", {o.iterations} iterations" if o.iterations != 1 else "")
     before_after(o.image, before, after, label_before="input", label_after=label, up=o.image_up, quiet=o.quiet,
-                 report=report, feature_lines=sharp)
+                 report=report, feature_lines=sharp, command=o.command)
 
 
 def subdivide_image(o, before, after, report: Reporter) -> None:
@@ -92,7 +97,8 @@ def subdivide_image(o, before, after, report: Reporter) -> None:
     levels = o.levels
     before_after(o.image, before, after, label_before=f"input ({before.n_faces} faces)",
                  label_after=f"{o.scheme}, {levels} level{'s' if levels != 1 else ''} ({after.n_faces} faces)",
-                 color="none", edges=True, shading=["flat", "smooth"], up=o.image_up, quiet=o.quiet, report=report)
+                 color="none", edges=True, shading=["flat", "smooth"], up=o.image_up, quiet=o.quiet, report=report,
+                 command="subdivide")
 
 
 def family_image(path: str, meshes, lams, *, view=VIEW, up: str = "auto", max_panels: int = 12,
@@ -115,4 +121,4 @@ def family_image(path: str, meshes, lams, *, view=VIEW, up: str = "auto", max_pa
                   labels=[f"λ={lams[i] + 0.0:g}" for i in idx], grid=(rows, int(np.ceil(len(idx) / rows))),
                   view=view, up=up_axis(up, meshes[0]), size=(260, 280))
     if not quiet and report is not None:
-        report.message(f"image -> {path}")
+        report.message(f"shapeflow family: image -> {path}")

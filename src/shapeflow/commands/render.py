@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import time
 from dataclasses import dataclass
 from typing import Sequence
 
 from ..errors import ParameterError
+from .argv import OptionalValue
 from .common import load_mesh
 from .images import check_png, parse_size, up_axis
 from .report import Reporter
@@ -57,31 +59,24 @@ class RenderOptions:
 
 
 class _MeshesThenPicture(argparse.Action):
-    """``PATH [PATH ...]``: the meshes (``input``), then the picture (``output``); a path that
-    ``--feature-lines`` took for its value comes first."""
+    """``PATH [PATH ...]``: the meshes (``input``), then the picture (``output``)."""
 
     def __call__(self, parser, namespace, values, option_string=None):
-        values = [*getattr(namespace, "stray_paths", []), *values]
         namespace.input, namespace.output = list(values[:-1]), values[-1]
 
 
-class _FeatureLines(argparse.Action):
-    """``--feature-lines [DEG|marked]``: 30° without a value; a word that is neither (``--feature-lines
-    part.obj out.png``) is a path, given back to the paths."""
-
-    def __call__(self, parser, namespace, value, option_string=None):
-        if value is not None and not _is_feature_value(value) and any(c in value for c in "./\\:"):
-            namespace.stray_paths = [*getattr(namespace, "stray_paths", []), value]
-            value = None
-        namespace.feature_lines = DEFAULT_FEATURE_ANGLE if value is None else value
-
-
 def _is_feature_value(text: str) -> bool:
+    """A value of ``--feature-lines``: a number or ``marked`` (any other word is a path)."""
     try:
         float(text)
     except ValueError:
         return text == "marked"
     return True
+
+
+def _is_grid(text: str) -> bool:
+    """A value of ``--grid``: ``RxC``, or a word of digits around an x (told as a bad grid), not a path."""
+    return re.fullmatch(r"[\d\s]*[xX][\d\s]*", text) is not None
 
 
 def add_parser(sub) -> None:
@@ -91,7 +86,7 @@ def add_parser(sub) -> None:
         usage="shapeflow render [options] MESH [MESH ...] OUT.png",
         description="Render meshes offscreen into a PNG: smooth or flat shading, a colour field with a "
         "colour bar, optional wireframe (quads drawn as quads). Several meshes are drawn side by side "
-        "with one camera and one colour range, so they can be compared.")
+        "with one camera and one colour range, so they can be compared.", intermixed=True)
     p.add_argument("paths", nargs="+", metavar="PATH", action=_MeshesThenPicture,
                    help="input meshes (OBJ, PLY, OFF, STL, glTF/GLB, USD, or example:NAME), then the PNG to write")
     p.add_argument("--color", "-c", default="curvature", metavar="FIELD",
@@ -108,13 +103,15 @@ def add_parser(sub) -> None:
                    help="the axis the model faces (default auto: the bundled examples' own, else +z with y up, "
                         "as glTF and Blender's exporters, and -y with z up, as in Blender)")
     p.add_argument("--edges", "-e", action="store_true", help="draw polygon edges (quads as quads)")
-    p.add_argument("--feature-lines", nargs="?", action=_FeatureLines, default=None, metavar="DEG|marked",
+    p.add_argument("--feature-lines", action=OptionalValue, accepts=_is_feature_value, const=DEFAULT_FEATURE_ANGLE,
+                   default=None, metavar="DEG|marked",
                    help="draw sharp edges as lines: those whose faces bend by more than DEG degrees (default 30), "
-                        "or 'marked': those the file marks (OBJ smoothing-group borders, 't crease' tags)")
+                        "or 'marked': those the file marks (OBJ smoothing-group borders, 't crease' tags); the word "
+                        "after it is its value only if it is a number or 'marked'")
     p.add_argument("--size", "-s", default=None, metavar="WxH",
                    help="picture size for one mesh (default 800x600), size of each panel for several "
                         "(default 400x400)")
-    p.add_argument("--grid", nargs="?", const="auto", default=None, metavar="RxC",
+    p.add_argument("--grid", action=OptionalValue, accepts=_is_grid, const="auto", default=None, metavar="RxC",
                    help="arrange several meshes in a grid: RxC, or near-square without a value "
                         "(default: one row)")
     p.add_argument("--shading", choices=["smooth", "flat"], default="smooth", help="default smooth")

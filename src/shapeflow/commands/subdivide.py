@@ -9,14 +9,13 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
 from ..errors import ParameterError
 from .common import load_mesh, progress, resolve_output, save_mesh, write_values
 from .features import EdgeFile, file_crease_tags, read_edge_file, with_crease_tags
-from .images import add_image_options
+from .images import add_image_options, check_picture_path
 from .report import Reporter
 
 __all__ = ["SubdivideOptions", "add_parser", "run"]
@@ -87,21 +86,6 @@ def add_parser(sub) -> None:
     p.set_defaults(options=SubdivideOptions)
 
 
-def _load_weights(path: str, n: int) -> np.ndarray:
-    p = Path(path)
-    if p.suffix.lower() == ".npy":
-        w = np.load(p, allow_pickle=False)
-    else:
-        try:
-            w = np.loadtxt(p, dtype=np.float64, ndmin=1)
-        except ValueError as exc:
-            raise ParameterError(f"weights file '{path}': {exc}") from None
-    w = np.asarray(w, dtype=np.float64).reshape(-1)
-    if w.size != n:
-        raise ParameterError(f"weights file '{path}' has {w.size} values; the mesh has {n} vertices")
-    return w
-
-
 def _creases(o: SubdivideOptions, mesh, source: str):
     """The library's ``creases`` for ``mesh`` (None, ``"mesh"``: the file's tags, or (pairs, values)),
     how many edges they crease, and where they come from (for the summary)."""
@@ -152,12 +136,15 @@ def _say_lost_creases(out, target: str) -> None:
 def run(o: SubdivideOptions, source: str, target: str, report: Reporter) -> None:
     """Subdivide ``source`` and write ``target`` (and ``o.weights_out``, ``o.image``)."""
     from ..geometry.weld import weld_if_split
+    from ..io.weights import load_weights
     from ..subdivision import subdivide
 
     resolve_output(source, target, o.force, o.image, o.weights_out)
+    if o.image:
+        check_picture_path(o.image)    # the picture can be drawn, before any work
     mesh = load_mesh(source, report)
     if o.weights:
-        mesh = mesh.with_weights(_load_weights(o.weights, mesh.n_vertices))
+        mesh = mesh.with_weights(load_weights(o.weights, mesh.n_vertices))
     creases, n_creased, crease_source = _creases(o, mesh, source)
     welded = weld_if_split(mesh)
     if welded is not mesh:   # a soup or split seams would subdivide as separate patches
@@ -180,7 +167,7 @@ def run(o: SubdivideOptions, source: str, target: str, report: Reporter) -> None
     if not o.quiet:
         creased = f"; {n_creased} creased edges {crease_source}" if n_creased else ""
         report.message(
-            f"subdivide: {welded.n_vertices} vertices, {welded.n_faces} faces -> "
+            f"shapeflow subdivide: {welded.n_vertices} vertices, {welded.n_faces} faces -> "
             f"{out.n_vertices} vertices, {out.n_faces} faces "
             f"({o.scheme}, {o.levels} level{'s' if o.levels != 1 else ''}) in {dt:.3f} s{creased}"
         )

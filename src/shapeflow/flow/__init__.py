@@ -44,9 +44,10 @@ paper (default, ``compat=None``)
     iteration.
 """
 
+from ..mesh.weights import resolve_weights
 from .api import enhance, flow, smooth
 from .family import STRATEGIES, family, family_meshes
-from .options import COMPAT_MODES, FLOW_SOLVERS, resolve_weights
+from .options import COMPAT_MODES, FLOW_SOLVERS
 from .report import FamilyReport, FlowReport
 from .solver import FlowSolver
 from .system import SystemBuilder

@@ -1,7 +1,7 @@
 """Compiled parts of the flow's systems: the interior matrix, its couplings and permuted gathers.
 
-The NumPy/SciPy reference is :mod:`shapeflow.flow.system` and :mod:`shapeflow.flow.solver`; the
-tests compare the two.
+:class:`FlowNumba` is the numba implementation of the flow family; the NumPy/SciPy reference is
+:class:`shapeflow.flow.kernels.FlowKernels`, and the tests compare the two.
 Conventions of all compiled kernels: :mod:`shapeflow.accel`.
 """
 
@@ -10,9 +10,11 @@ from __future__ import annotations
 import numpy as np
 from numba import get_num_threads, njit, prange
 
+from .kernels import FlowKernels, no_coupling
+
 
 def interior_data(nnz, pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw):
-    """Matrix data of the interior system (``FlowSolver._interior_system``) in one pass.
+    """Matrix data of the interior system (``FlowKernels.interior_matrix``) in one pass.
 
     Free rows: c + D on the diagonal, −w_ij where both ends are free; other
     rows are identity rows.  Returns the data array, the diagonal, the numbers
@@ -39,7 +41,7 @@ def interior_diag(pairs, free, c, deg, pw):
 
 
 def interior_coupling(pairs, free, pw, mixed):
-    """The pairs with exactly one free end, as ``FlowSolver._interior_system`` lists them:
+    """The pairs with exactly one free end, as ``FlowKernels.interior_coupling`` lists them:
     (free end, other end, weight), first the pairs whose first end is free, then the others,
     each group in pair order.  ``mixed`` = the two counts from :func:`interior_data`."""
     n_a, n_b = mixed
@@ -189,3 +191,42 @@ def max_row_distance(A, B):
         if s > best or s != s:
             best = s
     return np.sqrt(best)
+
+
+class FlowNumba(FlowKernels):
+    """The flow family compiled: the interior system in one pass, and the lean layout."""
+
+    backend = "numba"
+    lean_layout = True
+
+    def interior_matrix(self, pattern, free, c, deg, pw):
+        data, diag, mixed, ratio = interior_data(pattern.indices.size, pattern.pos_diag, pattern.pos_upper,
+                                                 pattern.pos_lower, pattern.pairs, free, c, deg, pw)
+        return pattern.matrix_from_data(data), diag, mixed, ratio
+
+    def interior_diag(self, pairs, free, c, deg, pw):
+        return interior_diag(pairs, free, c, deg, pw)
+
+    def interior_coupling(self, pairs, free, pw, mixed):
+        if mixed is None:
+            return super().interior_coupling(pairs, free, pw, mixed)
+        if not sum(mixed):
+            return no_coupling()
+        return interior_coupling(pairs, free, pw, mixed)
+
+    def scaled_abs_row_max(self, A, s, free):
+        return scaled_abs_row_max(A.indptr, A.indices, A.data, s)
+
+    def take(self, a, idx):
+        return take(a, idx)
+
+    def take_free(self, V, perm, free, out):
+        take_free(V, perm, free, out)
+
+    def untake_free(self, Y, inv, free, V, out):
+        untake_free(Y, inv, free, V, out)
+
+    def max_row_distance(self, A, B, chunk=4096):
+        if not (A.dtype == B.dtype == np.float64 and A.ndim == B.ndim == 2 and A.shape[1] == 3):
+            return super().max_row_distance(A, B, chunk)
+        return float(max_row_distance(A, B))

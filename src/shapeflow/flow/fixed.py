@@ -37,12 +37,8 @@ def fixed_steps(V: np.ndarray, lam: float, k: int, interior_sys: LinearSystem, a
     isq[free] = 1.0 / np.sqrt(interior_sys.c[free])
     # Gershgorin bound of S on the free rows (non-free rows are identity rows of A);
     # duplicate entries (a chord shared by two faces) add their |a_ij|: still a bound
-    fast = accel.compiled("flow", A.shape[0])
-    if fast is not None:
-        upper = fast.scaled_abs_row_max(A.indptr, A.indices, A.data, isq)
-    else:
-        absA = sp.csr_matrix((np.abs(A.data), A.indices, A.indptr), shape=A.shape)
-        upper = float((isq * (absA @ isq))[free].max())
+    kern = accel.kernels("flow", A.shape[0])
+    upper = kern.scaled_abs_row_max(A, isq, free)
     lo, hi = 1.0, max(upper, 1.0 + 1e-12)
     if lam > 0:
         fa = lambda t: 1.0 / t                     # noqa: E731
@@ -80,15 +76,15 @@ def fixed_steps(V: np.ndarray, lam: float, k: int, interior_sys: LinearSystem, a
     loc = pattern.locality() if axes.all() else None
     if loc is not None:
         perm, inv, ptr, idx, src = loc
-        Ap = sp.csr_matrix((fast.take(A.data, src), idx, ptr), shape=A.shape, copy=False)
+        Ap = sp.csr_matrix((kern.take(A.data, src), idx, ptr), shape=A.shape, copy=False)
         X0p = np.empty((n, 3))
-        fast.take_free(V, perm, free, X0p)             # V on the free rows, 0 elsewhere, permuted
-        Yp, degree = chebyshev_steps(Ap, fast.take(c, perm), X0p, fast.take(G, perm), lo, hi,
+        kern.take_free(V, perm, free, X0p)             # V on the free rows, 0 elsewhere, permuted
+        Yp, degree = chebyshev_steps(Ap, kern.take(c, perm), X0p, kern.take(G, perm), lo, hi,
                                      (cu, tu), (ch, th), rtol, need, steps=k, overwrite_g=True)
         if Yp is None or not np.all(np.isfinite(Yp)):
             return None
         out = X0p                                   # free again: the result, fixed rows exactly V
-        fast.untake_free(Yp, inv, free, V, out)
+        kern.untake_free(Yp, inv, free, V, out)
     else:
         # entries the steps may change: (n, 1) when every axis moves, else (n, 3)
         moving = free[:, None] if axes.all() else free[:, None] & axes[None, :]

@@ -7,10 +7,8 @@ import numpy as np
 from .. import params
 from ..errors import ParameterError
 from ..linalg.spd import METHODS
-from ..mesh import Mesh
 
-__all__ = ["COMPAT_MODES", "UPDATES", "FLOW_SOLVERS", "MEAN_RESTORE_FROM", "ITERATIONS_MAX", "check_run_options",
-           "resolve_weights"]
+__all__ = ["COMPAT_MODES", "UPDATES", "FLOW_SOLVERS", "MEAN_RESTORE_FROM", "ITERATIONS_MAX", "check_run_options"]
 
 
 COMPAT_MODES = (None, "paper", "blender")
@@ -39,26 +37,3 @@ def check_run_options(iterations, update, axes, blender: bool) -> np.ndarray:
     if blender and update != "fixed":
         raise ParameterError("compat='blender' keeps the operator of the first iteration (update='fixed')")
     return params.axes(axes)
-
-
-def resolve_weights(mesh: Mesh, weights, invert: bool = False) -> np.ndarray:
-    """Per-vertex weights in [0, 1] from None (all 1), an attribute name or an array."""
-    n = mesh.n_vertices
-    if weights is None:
-        w = np.ones(n)
-    elif isinstance(weights, str):
-        if weights not in mesh.attributes:
-            have = ", ".join(mesh.attributes) or "none"
-            raise ParameterError(f"the mesh has no attribute '{weights}' (attributes: {have})")
-        w = np.asarray(mesh.attributes[weights], dtype=np.float64)
-        if w.ndim != 1:
-            raise ParameterError(f"attribute '{weights}' has shape {w.shape}; weights need shape ({n},)")
-    else:
-        w = params.real_array("weights", weights)
-        if w.shape != (n,):
-            raise ParameterError(f"weights must have shape ({n},) (one per vertex), got {w.shape}")
-    bad = np.flatnonzero(~np.isfinite(w) | (w < 0) | (w > 1))
-    if bad.size:
-        i = int(bad[0])
-        raise ParameterError(f"weights must lie in [0, 1]; vertex {i} has {float(w[i])!r} ({bad.size} such vertices)")
-    return 1.0 - w if invert else w.copy()

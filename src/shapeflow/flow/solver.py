@@ -15,12 +15,13 @@ from ..linalg.pairs import PairMatrix
 from ..linalg.spd import DEFAULT_RTOL
 from ..mesh import Mesh
 from ..mesh.convert import as_mesh
+from ..mesh.weights import resolve_weights
 from ..operators.pattern import check_scheme
 from ..types import Axes, Weights
 from . import system
 from .features import SharpEdges, resolve_sharp_edges, solve_curves
 from .fixed import fixed_steps
-from .options import COMPAT_MODES, FLOW_SOLVERS, MEAN_RESTORE_FROM, check_run_options, resolve_weights
+from .options import COMPAT_MODES, FLOW_SOLVERS, MEAN_RESTORE_FROM, check_run_options
 from .report import FlowReport
 from .system import LinearSystem, Operator, SystemBuilder
 
@@ -260,13 +261,6 @@ class FlowSolver:
         return out
 
 
-def max_row_distance(A: np.ndarray, B: np.ndarray, chunk: int = 4096) -> float:
-    """max_i |A_i − B_i| (rows of (n, 3) arrays), in chunks small enough for malloc to reuse (no fresh pages)."""
-    fast = accel.compiled("flow", A.shape[0])
-    if fast is not None and A.dtype == B.dtype == np.float64 and A.ndim == B.ndim == 2 and A.shape[1] == 3:
-        return float(fast.max_row_distance(A, B))
-    best = 0.0
-    for s in range(0, A.shape[0], chunk):
-        d = A[s:s + chunk] - B[s:s + chunk]
-        best = max(best, float(np.einsum("ij,ij->i", d, d).max()))
-    return float(np.sqrt(best))
+def max_row_distance(A: np.ndarray, B: np.ndarray) -> float:
+    """max_i |A_i − B_i| over the rows of two (n, 3) arrays (the flow family's kernel)."""
+    return accel.kernels("flow", A.shape[0]).max_row_distance(A, B)

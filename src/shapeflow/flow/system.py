@@ -22,7 +22,7 @@ from ..linalg import spd
 from ..linalg.pairs import PairMatrix
 from ..linalg.spd import SPDSolver, choose_method
 from ..mesh import Mesh
-from ..operators.weights import assemble
+from ..operators.cotan import assemble
 from .options import MEAN_RESTORE_FROM
 from .report import FlowReport
 
@@ -286,9 +286,9 @@ class SystemBuilder:
             return "cg"   # single steps; several fixed steps go through _fixed_steps
         if self.solver_method != "auto":
             return self.solver_method
-        # the compiled CG on the CSR system preconditions with symmetric Gauss–Seidel (SPDSolver)
-        sgs = (not lean and accel.compiled("linalg", n_free if n_rows is None else n_rows) is not None
-               and spd.DEFAULT_PRECONDITIONER != "jacobi")
+        # CG on the CSR system preconditions as the linalg kernels do for "auto" (Gauss–Seidel compiled)
+        auto = accel.kernels("linalg", n_free if n_rows is None else n_rows).auto_preconditioner
+        sgs = not lean and auto == "sgs" and spd.DEFAULT_PRECONDITIONER != "jacobi"
         return choose_method(n_free, kappa, n_solves, self.rtol, "sgs" if sgs else "jacobi")
 
     def interior(self, operator: Operator, lam: float, n_solves: int, notes: list, *,
@@ -318,51 +318,30 @@ class SystemBuilder:
             return None
         c[~free] = 0.0
         pattern = operator.pattern
-        p0, p1 = pattern.pairs[:, 0], pattern.pairs[:, 1]
-        fast = accel.compiled("flow", pattern.n)
-        lean = lean and fast is not None      # the lean layout needs the compiled kernels
-        A, diag, mixed, ratio = self._matrix(operator, free, c, fast, lean)
-        n_mixed = sum(mixed) if mixed is not None else -1   # -1: the NumPy path lists the couplings itself
+        kern = accel.kernels("flow", pattern.n)
+        lean = lean and kern.lean_layout
+        A, diag, mixed, ratio = self._matrix(operator, free, c, kern, lean)
         # terms of free rows on non-free columns move to the right-hand side
-        if n_mixed and fast is not None:
-            coupling = fast.interior_coupling(pattern.pairs, free, operator.pw, mixed)
-        elif n_mixed:
-            a = free[p0] & ~free[p1]
-            b = free[p1] & ~free[p0]
-            coupling = (np.concatenate([p0[a], p1[b]]), np.concatenate([p1[a], p0[b]]),
-                        np.concatenate([operator.pw[a], operator.pw[b]]))
-        else:
-            coupling = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0))
+        coupling = kern.interior_coupling(pattern.pairs, free, operator.pw, mixed)
         kappa = 1.0 + 2.0 * ratio
         method = "lu" if (self.blender and indefinite.any()) else \
             self.method(int(free.sum()), kappa, n_solves, n_rows=pattern.n, lean=lean)
         if A is None:   # the lean layout serves CG; a direct solver needs the entries
             A = PairMatrix(pattern.pairs, operator.pw, free, diag) if method == "cg" else \
-                self._matrix(operator, free, c, fast, False)[0]
+                self._matrix(operator, free, c, kern, False)[0]
         # A has the pattern's layout (sorted columns, one diagonal entry a row) unless it is a PairMatrix
         pos = pattern.pos_diag if isinstance(A, sp.csr_matrix) and pattern.csr_built else None
         return LinearSystem(A, free, SPDSolver(A, method, rtol=self.rtol, diagonal=diag, diagonal_positions=pos),
                             coupling, c)
 
     @staticmethod
-    def _matrix(operator: Operator, free: np.ndarray, c: np.ndarray, fast, lean: bool):
-        """(A, diagonal, counts of pairs with one free end (None on the NumPy path), max D/c); A is None with ``lean``
-        (the caller makes a :class:`PairMatrix` for CG, no CSR arrays)."""
-        pattern = operator.pattern
+    def _matrix(operator: Operator, free: np.ndarray, c: np.ndarray, kern, lean: bool):
+        """(A, diagonal, counts of pairs with one free end (None when not counted), max D/c) by the flow
+        kernels ``kern``; A is None with ``lean`` (the caller makes a :class:`PairMatrix` for CG, no CSR arrays)."""
         if lean:
-            diag, mixed, ratio = fast.interior_diag(pattern.pairs, free, c, operator.deg, operator.pw)
+            diag, mixed, ratio = kern.interior_diag(operator.pattern.pairs, free, c, operator.deg, operator.pw)
             return None, diag, mixed, ratio
-        if fast is not None:   # the same matrix in one compiled pass
-            data, diag, mixed, ratio = fast.interior_data(pattern.indices.size, pattern.pos_diag, pattern.pos_upper,
-                                                          pattern.pos_lower, pattern.pairs, free, c, operator.deg,
-                                                          operator.pw)
-            return pattern.matrix_from_data(data), diag, mixed, ratio
-        p0, p1 = pattern.pairs[:, 0], pattern.pairs[:, 1]
-        both = free[p0] & free[p1]
-        diag = np.where(free, c + operator.deg, 1.0)
-        A = pattern.matrix(diag, np.where(both, -operator.pw, 0.0))
-        ratio = float(np.max(np.abs(operator.deg[free] / np.where(c[free] != 0, c[free], 1.0))))
-        return A, diag, None, ratio
+        return kern.interior_matrix(operator.pattern, free, c, operator.deg, operator.pw)
 
     def boundary(self, operator: Operator, lam_b: float) -> LinearSystem | None:
         if lam_b == 0.0 or operator.umbrella_pairs.size == 0:

@@ -1,7 +1,8 @@
-"""The compiled twin of the one corner-triangle cotangent formula.
+"""The compiled twin of the one corner-triangle cotangent formula, and sharp edges by angle.
 
-The NumPy/SciPy reference is :func:`shapeflow.geometry.cotangent.corner_terms`; the tests compare
-the two.
+The NumPy/SciPy references are :func:`shapeflow.geometry.cotangent.corner_terms` and
+:class:`shapeflow.geometry.kernels.GeometryKernels` (:class:`GeometryNumba` is the family's numba
+implementation); the tests compare the two.
 Conventions of all compiled kernels: :mod:`shapeflow.accel`.
 """
 
@@ -9,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+
+from .kernels import GeometryKernels
 
 
 @njit(inline="always")
@@ -43,7 +46,7 @@ def cross_of_differences(V, a, b, c, d):
 
 
 def angle_sharp_edges(face_offsets, face_indices, corner_edge, n_edges, V, angle):
-    """:func:`shapeflow.geometry.features.angle_sharp_edges` in one pass over the faces' corners:
+    """``GeometryKernels.angle_sharp_edges`` in one pass over the faces' corners:
     (E,) mask of the edges whose two faces' normals make more than ``angle`` degrees, and of the
     edges with three or more faces."""
     sharp = np.zeros(n_edges, dtype=np.bool_)
@@ -112,3 +115,16 @@ def _angle_sharp(offsets, fi, corner_edge, V, quads, angle, c_lim, seen, first, 
             else:                                          # a third face: non-manifold, sharp
                 seen[e] = 3
                 sharp[e] = True
+
+
+class GeometryNumba(GeometryKernels):
+    """The geometry family compiled."""
+
+    backend = "numba"
+
+    def angle_sharp_edges(self, mesh, V, angle):
+        t = mesh.topology
+        if not t.n_edges:
+            return super().angle_sharp_edges(mesh, V, angle)
+        return angle_sharp_edges(t.face_offsets, t.face_indices, t.corner_edge, t.n_edges,
+                                 np.ascontiguousarray(V, dtype=np.float64), angle)

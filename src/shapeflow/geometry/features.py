@@ -29,8 +29,8 @@ from .. import accel, params
 from ..errors import ParameterError
 from .measures import face_vector_areas, pow2_exponent
 
-__all__ = ["dihedral_angles", "angle_sharp_edges", "edge_ids", "check_feature_angle", "smoothing_group_edges",
-           "file_creases", "file_sharp_edges", "OFF_GROUPS"]
+__all__ = ["dihedral_angles", "angle_sharp_edges", "two_face_edges", "edge_ids", "check_feature_angle",
+           "smoothing_group_edges", "file_creases", "file_sharp_edges", "OFF_GROUPS"]
 
 #: smoothing-group names that mean "not smoothed" (``s off``, ``s 0``) and faces before any ``s`` line
 OFF_GROUPS = ("", "off", "0")
@@ -41,7 +41,7 @@ def check_feature_angle(angle) -> float:
     return params.number("feature_angle", angle, lo=0.0, hi=180.0)
 
 
-def _two_face_edges(t):
+def two_face_edges(t):
     """Edge ids with exactly two faces, their two faces, and whether both faces run the edge the same way."""
     two = np.flatnonzero(t.edge_face_count == 2)
     o = t.edge_corner_offsets[two]
@@ -58,7 +58,7 @@ def dihedral_angles(mesh, vertices: np.ndarray | None = None) -> np.ndarray:
     """
     t = mesh.topology
     out = np.full(t.n_edges, np.nan)
-    two, f0, f1, same = _two_face_edges(t)
+    two, f0, f1, same = two_face_edges(t)
     if two.size == 0:
         return out
     fa = face_vector_areas(mesh, mesh.vertices if vertices is None else vertices)
@@ -77,7 +77,7 @@ def angle_sharp_edges(mesh, angle: float, vertices: np.ndarray | None = None) ->
 
     The cosine of the angle decides (one dot product of unit normals per edge); edges within 1e-6
     of the threshold's cosine are decided by the angle itself, from ``atan2(|a × b|, a · b)``.
-    Compiled twin: :func:`shapeflow.geometry.compiled.angle_sharp_edges` (one pass over the corners).
+    The pass over the edges is the geometry kernel family's (:class:`~shapeflow.geometry.kernels.GeometryKernels`).
     """
     angle = check_feature_angle(angle)
     t = mesh.topology
@@ -85,34 +85,7 @@ def angle_sharp_edges(mesh, angle: float, vertices: np.ndarray | None = None) ->
     k = pow2_exponent(V)
     if k:      # normals are scale-free: an exact power-of-two copy keeps the areas in range
         V = np.ldexp(V, -k)
-    fast = accel.compiled("geometry", t.n_vertices)
-    if fast is not None and t.n_edges:
-        return fast.angle_sharp_edges(t.face_offsets, t.face_indices, t.corner_edge, t.n_edges,
-                                      np.ascontiguousarray(V, dtype=np.float64), angle)
-    sharp = t.edge_face_count > 2
-    two, f0, f1, same = _two_face_edges(t)
-    if two.size == 0:
-        return sharp
-    fa = face_vector_areas(mesh, V)
-    ln = np.sqrt(fa[:, 0] * fa[:, 0] + fa[:, 1] * fa[:, 1] + fa[:, 2] * fa[:, 2])
-    ok = ln > 0
-    inv = np.divide(1.0, ln, out=np.zeros_like(ln), where=ok)
-    nx, ny, nz = (fa[:, k] * inv for k in range(3))
-    cos = nx[f0] * nx[f1] + ny[f0] * ny[f1] + nz[f0] * nz[f1]
-    if same.any():                        # inconsistent orientation: the bend, not the flip
-        cos[same] *= -1.0
-    c = float(np.cos(np.radians(angle)))
-    hit = (cos < c) & ok[f0] & ok[f1]
-    near = np.flatnonzero(np.abs(cos - c) < 1e-6)
-    if near.size:
-        a = np.stack([nx[f0[near]], ny[f0[near]], nz[f0[near]]], axis=1)
-        b = np.stack([nx[f1[near]], ny[f1[near]], nz[f1[near]]], axis=1)
-        cr = np.cross(a, b)
-        sin = np.sqrt(cr[:, 0] * cr[:, 0] + cr[:, 1] * cr[:, 1] + cr[:, 2] * cr[:, 2])
-        exact = np.degrees(np.arctan2(sin, cos[near]))
-        hit[near] = (exact > angle) & ok[f0[near]] & ok[f1[near]]
-    sharp[two[hit]] = True
-    return sharp
+    return accel.kernels("geometry", t.n_vertices).angle_sharp_edges(mesh, V, angle)
 
 
 def _edge_keys(t) -> tuple[np.ndarray, np.ndarray]:

@@ -5,7 +5,8 @@ vertex attribute ``"color"``), texture coordinates ``vt`` and normals ``vn`` as
 the corner attributes ``"uv"`` and ``"normal"`` (tables and per-corner indices, so
 their sharing and seams come back unchanged), ``usemtl``, ``g``, ``o`` and ``s``
 as the face attributes ``"material"``, ``"group"``, ``"object"`` and ``"smooth"``,
-and ``mtllib`` lines and comments as metadata.  Polylines ``l``, points ``p`` and OpenSubdiv tags
+and ``mtllib`` lines and comments as metadata (``# shapeflow front -z``: ``metadata["front"]``, the
+axis the model faces, as PLY's ``comment shapeflow front -z``).  Polylines ``l``, points ``p`` and OpenSubdiv tags
 ``t`` (creases, corners, holes) refer to vertex numbers: they are kept as metadata and written
 back after the faces while the vertices keep their numbering (smoothing, enhancement, the brush),
 with a warning otherwise.  Curves and surfaces (and ``l``/``p``/``t`` lines with relative indices)
@@ -26,6 +27,7 @@ from ..errors import DataLossWarning, MeshError
 from ..mesh import Mesh
 from ..mesh.attributes import Indexed, Labels
 from .atomic import writing_in
+from .ply import front_comment, front_from_comments
 from .text import Text, build_mesh, ranges, text_data, write_rows
 
 __all__ = ["read_obj", "write_obj", "FACE_TAGS"]
@@ -200,7 +202,8 @@ def read_obj(data: bytes, name: str) -> Mesh:
     elements, relative = _vertex_elements(txt, a, np.flatnonzero(is_elem), vrec.size, int(is_vt.sum()), frec.size)
     if relative:
         dropped = {**dropped, **relative}
-    meta = {"comments": [c for c in comments if not c.startswith(_OWN_HEADER)],
+    front, comments = front_from_comments([c for c in comments if not c.startswith(_OWN_HEADER)])
+    meta = {"comments": comments,
             "mtllib": _texts(txt, np.flatnonzero(is_state[b"mtllib"])), "dropped": dropped}
     if meta["mtllib"]:      # where the material libraries are, for a copy written elsewhere
         meta["folder"] = os.path.dirname(os.path.abspath(name))
@@ -212,8 +215,9 @@ def read_obj(data: bytes, name: str) -> Mesh:
         warnings.warn(DataLossWarning(f"{name}: not kept (they describe no polygon): {what}"), stacklevel=3)
     vfirst = rf[vrec]
     keep = corner or face or any(meta.values())
+    metadata = {**({"obj": meta} if keep else {}), **({"front": front} if front else {})}
     return build_mesh(name, vertices, sizes, idx, attributes=attributes, corner_attributes=corner,
-                      face_attributes=face, metadata={"obj": meta} if keep else None,
+                      face_attributes=face, metadata=metadata or None,
                       where_vertex=lambda i: f"line {txt.lineno(vfirst[i])}",
                       where_face=lambda f: f"line {txt.lineno(ffirst[f])}")
 
@@ -407,7 +411,7 @@ def write_obj(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None) -> None:
                                       "attributes)"), stacklevel=4)
     meta = mesh.metadata.get("obj", {})
     head = [f"# {_OWN_HEADER} {mesh.n_vertices} vertices, {mesh.n_faces} faces"]
-    head += [f"# {c}" for c in meta.get("comments", [])]
+    head += [f"# {c}" for c in front_comment(mesh) + meta.get("comments", [])]
     head += [f"mtllib {m}" for m in meta.get("mtllib", [])]
     _warn_missing_libraries(meta)
     f.write(("\n".join(head) + "\n").encode("utf-8"))

@@ -12,7 +12,7 @@ from ..errors import DataLossWarning, MeshError
 from ..mesh import Mesh
 from .text import Text, build_mesh, ranges, strip_bom
 
-__all__ = ["read_ply", "PLY_TYPES", "OWN_COMMENT", "MAX_HEADER_BYTES"]
+__all__ = ["read_ply", "PLY_TYPES", "OWN_COMMENT", "MAX_HEADER_BYTES", "front_comment", "front_from_comments"]
 
 
 PLY_TYPES = {
@@ -28,6 +28,23 @@ OWN_COMMENT = "written by shapeflow"
 #: the header (the text before ``end_header``) is at most this long: ~700,000 property lines, where
 #: real files have tens; it is parsed in one pass either way
 MAX_HEADER_BYTES = 16 << 20
+#: the comment that keeps ``metadata["front"]`` (the axis the model faces, for the renderer's views):
+#: ``comment shapeflow front -z`` in PLY, ``# shapeflow front -z`` in OBJ; only this exact form is read
+_FRONT = re.compile(r"shapeflow front ([+-][xyz])")
+
+
+def front_comment(mesh: Mesh) -> list[str]:
+    """The comment text that keeps ``mesh.metadata["front"]`` (one of +x, -x, +y, -y, +z, -z), or none."""
+    front = mesh.metadata.get("front")
+    return [f"shapeflow front {front}"] if isinstance(front, str) and _FRONT.fullmatch(f"shapeflow front {front}") \
+        else []
+
+
+def front_from_comments(comments: list[str]) -> tuple[str | None, list[str]]:
+    """The front a file's comments declare (the last ``shapeflow front AXIS``), and the other comments."""
+    found = [_FRONT.fullmatch(c.rstrip()) for c in comments]
+    fronts = [m.group(1) for m in found if m]
+    return (fronts[-1] if fronts else None), [c for c, m in zip(comments, found) if not m]
 
 
 @dataclass
@@ -351,7 +368,7 @@ def read_ply(data: bytes, name: str) -> Mesh:
         warnings.warn(DataLossWarning(f"{name}: not kept: {', '.join(lost)}"), stacklevel=3)
     meta = {key: [ln.split(None, 1)[1] if len(ln.split(None, 1)) > 1 else "" for ln in header.split("\n")
                   if ln.split(None, 1)[:1] == [key]] for key in ("comment", "obj_info")}
-    meta["comment"] = [c for c in meta["comment"] if c != OWN_COMMENT]
+    front, meta["comment"] = front_from_comments([c for c in meta["comment"] if c != OWN_COMMENT])
     # what writing it back needs: each property's type, in the file's order, and the list properties
     # that are not the faces' corners or texture coordinates (valid while vertices and faces stay)
     meta["types"] = {el.name: {p.name: (p.count_dtype.newbyteorder("=").str[1:], p.dtype.newbyteorder("=").str[1:])
@@ -361,7 +378,8 @@ def read_ply(data: bytes, name: str) -> Mesh:
         meta["lists"] = {"vertex": vlists, "face": flists}
         meta["lists_of"] = (vertices.shape[0], idx)
     return build_mesh(name, vertices, sizes, idx, attributes=attributes, corner_attributes=corner,
-                      face_attributes=face, metadata={"ply": meta}, where_vertex=vloc, where_face=floc)
+                      face_attributes=face, metadata={"ply": meta, **({"front": front} if front else {})},
+                      where_vertex=vloc, where_face=floc)
 
 
 def _face_extras(fel: _Element, vals: dict, sizes: np.ndarray, name: str, floc):

@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import DataLossWarning, MeshError
 from ..mesh import Mesh
-from .ply import OWN_COMMENT, PLY_TYPES
+from .ply import OWN_COMMENT, PLY_TYPES, front_comment
 from .text import write_rows
 
 __all__ = ["write_ply"]
@@ -178,7 +178,8 @@ def write_ply(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None, byteorder:
     vfields, ffields = _ordered(vfields, vtypes), _ordered(ffields, ftypes)
     fmt = ("binary_little_endian" if byteorder == "<" else "binary_big_endian") if binary else "ascii"
     head = ["ply", f"format {fmt} 1.0", f"comment {OWN_COMMENT}"]
-    head += [f"comment {c}" for c in meta.get("comment", [])] + [f"obj_info {c}" for c in meta.get("obj_info", [])]
+    head += [f"comment {c}" for c in front_comment(mesh) + meta.get("comment", [])]
+    head += [f"obj_info {c}" for c in meta.get("obj_info", [])]
     head += [f"element vertex {mesh.n_vertices}"] + [fl.header() for fl in vfields]
     head += [f"element face {mesh.n_faces}"] + [fl.header() for fl in ffields]
     f.write(("\n".join(head + ["end_header"]) + "\n").encode("utf-8"))

@@ -7,6 +7,7 @@ import os
 import numpy as np
 
 from ..errors import MeshError
+from ..mesh.weights import check_weights
 from ..types import ArrayLike, PathLike
 from .atomic import as_path, atomic_write, os_error, read_bytes
 from .text import Text, write_rows
@@ -97,17 +98,3 @@ def save_weights(path: PathLike, weights: ArrayLike, *, force: bool = False) -> 
     else:
         atomic_write(name, lambda f: write_rows(f, "%r\n", w[:, None]), force=force)
 
-
-def check_weights(name: str, w: np.ndarray, n: int, where) -> np.ndarray:
-    if w.shape[0] != n:
-        raise MeshError(f"{name}: has {w.shape[0]} weights but the mesh has {n} vertices")
-    bad = np.flatnonzero(~np.isfinite(w))
-    if bad.size:
-        i = int(bad[0])
-        raise MeshError(f"{name}: {where(i)}: weight of vertex {i} is not finite ({float(w[i])!r})")
-    bad = np.flatnonzero((w < 0) | (w > 1))
-    if bad.size:
-        i = int(bad[0])
-        raise MeshError(f"{name}: {where(i)}: weight of vertex {i} is {float(w[i])!r}, outside [0, 1] "
-                        f"({bad.size} such values)")
-    return w

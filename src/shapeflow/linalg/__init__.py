@@ -14,8 +14,9 @@
   :mod:`~shapeflow.linalg.ordering` and the BLAS thread control of
   :mod:`~shapeflow.linalg.blas`.
 
-Compiled twins: :mod:`~shapeflow.linalg.compiled` (both CGs, Clenshaw step) and
-:mod:`~shapeflow.linalg.compiled_split` (the two-thread split solve).
+Kernel families (:mod:`~shapeflow.linalg.kernels`): ``"linalg"`` (CG, Clenshaw step) and ``"local"``
+(the small systems' orders and split solve); numba implementations in :mod:`~shapeflow.linalg.compiled`
+and :mod:`~shapeflow.linalg.compiled_split`.
 """
 
 from .chebyshev import chebyshev_coefficients, chebyshev_steps

@@ -70,8 +70,7 @@ def chebyshev_steps(A: sp.csr_matrix, c: np.ndarray, X0: np.ndarray, G: np.ndarr
     m = min(cu.size, ch.size, max_degree + 1)
     cinv = np.divide(1.0, c, out=np.zeros_like(c), where=c > 0)
     X0 = np.ascontiguousarray(X0, dtype=np.float64)
-    fast = accel.compiled("linalg", n)
-    use_k = fast is not None and A.indices.dtype == np.int32 and A.indptr.dtype == np.int32
+    kern = accel.kernels("linalg", n)
     if overwrite_g and G.dtype == np.float64 and G.flags.c_contiguous and G.shape == X0.shape:
         H0 = np.multiply(G, cinv[:, None], out=G)
     else:
@@ -79,24 +78,16 @@ def chebyshev_steps(A: sp.csr_matrix, c: np.ndarray, X0: np.ndarray, G: np.ndarr
 
     def cnorm(Y):
         """The C-weighted norm of each column."""
-        if use_k and Y.shape[1] == 3 and Y.flags.c_contiguous:
-            return np.sqrt(fast.weighted_col_norms2(c, Y))
-        return np.sqrt(np.einsum("i,ij,ij->j", c, Y, Y))
+        return kern.weighted_col_norms(A, c, Y)
 
     nu = cnorm(X0)
     nh = cnorm(H0)
     bounds = tu[:m, None] * nu + th[:m, None] * nh            # (m, 3): bound after degree j
     alpha, beta = 2.0 / (b - a), (a + b) / (b - a)
-    data = np.ascontiguousarray(A.data, dtype=np.float64)
 
     def step(B1, B2, f, cuj, chj):
         """B2 <- f·Ã B1 − B2 + cuj X0 + chj H0, in place."""
-        if use_k:
-            fast.clenshaw_step(A.indptr, A.indices, data, cinv, B1, B2, X0, H0, f, alpha, beta, cuj, chj)
-            return
-        AB = A @ B1
-        B2 *= -1.0
-        B2 += f * (alpha * cinv[:, None] * AB - beta * B1) + cuj * X0 + chj * H0
+        kern.clenshaw_step(A, cinv, B1, B2, X0, H0, f, alpha, beta, cuj, chj)
 
     def degree_for(target):
         ok = np.all(bounds <= target, axis=1)

@@ -1,7 +1,7 @@
-"""Compiled linear algebra: the three-column Jacobi CG and the Chebyshev (Clenshaw) step.
+"""Compiled linear algebra: the three-column CGs (Jacobi, symmetric Gauss–Seidel) and the Chebyshev (Clenshaw) step.
 
-The NumPy/SciPy reference is :mod:`shapeflow.linalg.spd` and :mod:`shapeflow.linalg.chebyshev`; the
-tests compare the two.
+:class:`LinalgNumba` is the numba implementation of the linalg family; the NumPy/SciPy reference
+is :class:`shapeflow.linalg.kernels.LinalgKernels`, and the tests compare the two.
 Conventions of all compiled kernels: :mod:`shapeflow.accel`.
 """
 
@@ -11,6 +11,8 @@ import numpy as np
 from numba import get_num_threads, njit, prange
 
 from ..accel import sequential, zeros
+from .kernels import LinalgKernels
+from .pairs import PairMatrix
 
 
 @njit(inline="always")
@@ -147,7 +149,7 @@ _update_p_seq = sequential(_update_p)
 def pcg3(indptr, indices, data, minv, B, X, rtol, maxiter, overwrite_b=False):
     """Jacobi-PCG on the columns of B (n, 3), X (n, 3) warm start, updated in place.
 
-    Same algorithm and stopping rule as ``SPDSolver._cg``: a column stops
+    Same algorithm and stopping rule as ``LinalgKernels.cg``: a column stops
     (α = 0, β = 1) once its preconditioned residual norm fell below ``rtol`` ×
     its initial value.  Returns the iteration count.  ``overwrite_b``: B
     becomes the residual's storage (one (n, 3) array less to allocate).
@@ -480,3 +482,78 @@ def _sgs_update(d, alpha, T, W, X, R):
         s1 += r1 * r1 * di
         s2 += r2 * r2 * di
     return np.array([s0, s1, s2])
+
+
+class LinalgNumba(LinalgKernels):
+    """The linalg family compiled: CG on three columns at once in an (n, 3) layout, the Clenshaw step fused."""
+
+    backend = "numba"
+    auto_preconditioner = "sgs"     # a compiled Gauss–Seidel sweep costs about one product
+
+    def cg(self, solver, B, X0, overwrite_b=False):
+        """Jacobi (all cores) or symmetric Gauss–Seidel (one core; ``preconditioner`` "auto" on a CSR
+        matrix with sorted columns and a positive diagonal, or "sgs"), up to three columns of a
+        :class:`PairMatrix` or an int32-indexed CSR matrix; the reference otherwise."""
+        A = solver.A
+        squeeze = B.ndim == 1
+        k = 1 if squeeze else B.shape[1]
+        lean = isinstance(A, PairMatrix)
+        if k > 3 or not (lean or (A.indices.dtype == np.int32 and A.indptr.dtype == np.int32)):
+            return super().cg(solver, B, X0, overwrite_b)
+        n = A.shape[0]
+        if k == 3:   # B is C-contiguous float64 (solve() made it so); the kernel only reads it
+            B3 = B
+            X = np.array(X0, dtype=np.float64, order="C") if X0 is not None else np.zeros((n, 3))
+        else:
+            B3 = np.zeros((n, 3))
+            B3[:, :k] = B.reshape(n, k)
+            X = np.zeros((n, 3))
+            if X0 is not None:
+                X[:, :k] = np.asarray(X0, dtype=np.float64).reshape(n, k)
+        maxiter = solver.iteration_cap(n)
+        reused = overwrite_b or B3 is not B
+        sgs = False
+        if lean:
+            its = pcg3_pairs(A.pairs, A.weights, A.free, A.d, solver.minv, B3, X, solver.rtol, maxiter,
+                             overwrite_b=reused)
+        else:
+            pre = solver.preconditioner
+            if pre != "jacobi" and solver.positive and solver.splits is None:
+                solver.splits = row_splits(A.indptr, A.indices)
+                if solver.splits is None and pre == "sgs":   # unsorted columns: a sorted copy
+                    solver.A = A = A.sorted_indices()
+                    solver.splits = row_splits(A.indptr, A.indices)
+            sgs = pre != "jacobi" and solver.positive and solver.splits is not None
+            data = np.ascontiguousarray(A.data, dtype=np.float64)
+            if sgs:
+                its = sgs_pcg3(A.indptr, A.indices, data, solver.splits, solver.diagonal, B3, X, solver.rtol,
+                               maxiter, overwrite_b=reused)
+            else:
+                its = pcg3(A.indptr, A.indices, data, solver.minv, B3, X, solver.rtol, maxiter, overwrite_b=reused)
+        solver.stats.preconditioner = "sgs" if sgs else "jacobi"
+        solver.stats.iterations = int(its)
+        # the kernel stops at convergence or at the cap: reaching the cap counts as not converged
+        converged = solver.stats.iterations < maxiter and bool(np.all(np.isfinite(X)))
+        if not converged and reused and B3 is B:   # B holds the residual: rebuild B
+            import scipy.sparse as sp
+
+            # Jacobi: r = B − A X; SGS: r̂ = E⁻¹ r with E = D + L, the lower triangle of A
+            B = (sp.tril(A, 0, format="csr") @ B3 if sgs else B3) + A @ X
+        Xk = X[:, 0].copy() if squeeze else (X if k == 3 else X[:, :k].copy())
+        return Xk, converged, B
+
+    def weighted_col_norms(self, A, c, Y):
+        if not (int32_csr(A) and Y.shape[1] == 3 and Y.flags.c_contiguous):
+            return super().weighted_col_norms(A, c, Y)
+        return np.sqrt(weighted_col_norms2(c, Y))
+
+    def clenshaw_step(self, A, cinv, B1, B2, X0, H0, f, alpha, beta, cuj, chj):
+        if not int32_csr(A):
+            return super().clenshaw_step(A, cinv, B1, B2, X0, H0, f, alpha, beta, cuj, chj)
+        clenshaw_step(A.indptr, A.indices, np.ascontiguousarray(A.data, dtype=np.float64), cinv, B1, B2, X0, H0,
+                      f, alpha, beta, cuj, chj)
+
+
+def int32_csr(A) -> bool:
+    """Whether the CSR matrix A has int32 index arrays (what the compiled products take)."""
+    return A.indices.dtype == np.int32 and A.indptr.dtype == np.int32

@@ -1,7 +1,7 @@
 """Compiled split solver of small SPD systems: two banded halves factored on two threads.
 
-The NumPy/SciPy reference is :mod:`shapeflow.linalg.local` and :mod:`shapeflow.linalg.ordering`; the
-tests compare the two.
+:class:`LocalNumba` is the numba implementation of the local family; the NumPy/SciPy reference is
+:class:`shapeflow.linalg.kernels.LocalKernels` (which has no split solve), and the tests compare the two.
 Conventions of all compiled kernels: :mod:`shapeflow.accel`.
 """
 
@@ -10,7 +10,12 @@ from __future__ import annotations
 import numpy as np
 from numba import get_num_threads, njit, prange
 
-__all__ = ["cm_order", "split_order", "split_solve", "split_work_size", "get_num_threads"]
+from .banded import lapack_band
+from .blas import FALLBACKS, SingleThreadBLAS, split_routines
+from .kernels import LocalKernels
+from .ordering import row_ptr
+
+__all__ = ["cm_order", "split_order", "split_solve", "split_work_size", "get_num_threads", "LocalNumba"]
 
 
 @njit(cache=True)
@@ -352,3 +357,42 @@ def split_work_size(dims) -> int:
     """Doubles of work space :func:`split_solve` needs for ``dims``."""
     nA, nB, nS, kdA, kdB, tA, tB = (int(x) for x in dims)
     return _half_size(nA, kdA, tA, nS) + _half_size(nB, kdB, tB, nS) + nS * nS + 3 * nS
+
+
+class LocalNumba(LocalKernels):
+    """The local family compiled: the Cuthill–McKee searches without a CSR matrix, and the split solve."""
+
+    backend = "numba"
+
+    def local_order(self, k, ri, ci, grouped=True):
+        if grouped:   # the same searches, compiled (they need the rows grouped)
+            perm, inv = np.empty(k, np.int64), np.empty(k, np.int64)
+            o2, lev1, lev2 = np.empty((3, k), np.int64)
+            if cm_order(row_ptr(ri, k), ri, ci, perm, inv, o2, lev1, lev2):
+                return perm, inv
+        return super().local_order(k, ri, ci, grouped)
+
+    def split_solve(self, solver, k, ri, ci, vi, diag, rhs, notes=None):
+        fns = split_routines()
+        if fns is None:
+            if notes is not None:
+                notes.append(FALLBACKS.get("split", "split solver unavailable"))
+            return None
+        # one thread too: the halves are then factored one after the other, with the same arithmetic,
+        # so a dab's result does not depend on how many threads the machine can give it
+        perm, inv, o1, o2, lev1, lev2 = np.empty((6, k), np.int64)
+        dims = np.empty(7, np.int64)
+        if split_order(row_ptr(ri, k), ri, ci, max(64, k // 5), perm, inv, o1, o2, lev1, lev2, dims) != 0:
+            return None
+        band = int(max(dims[3], dims[4]))
+        for h in range(2):
+            dims[3 + h] = lapack_band(int(dims[3 + h]), int(dims[h]))
+        buf = solver.work(split_work_size(dims))
+        X = np.empty((k, 3))
+        with SingleThreadBLAS():
+            status = split_solve(*fns, ri, ci, np.ascontiguousarray(vi, dtype=np.float64),
+                                 np.ascontiguousarray(diag, dtype=np.float64),
+                                 np.ascontiguousarray(rhs, dtype=np.float64), perm, inv, dims, buf, X)
+        if status != 0:
+            return None
+        return X, "split", band

@@ -33,8 +33,7 @@ import scipy.sparse as sp
 
 from .. import accel
 from .banded import BANDED_MAX_WORK, banded_cholesky, lapack_band
-from .blas import FALLBACKS, SingleThreadBLAS, split_routines
-from .ordering import LOCAL_RCM_WORK, local_order, row_ptr
+from .ordering import LOCAL_RCM_WORK, local_order
 
 __all__ = ["LOCAL_METHODS", "SPLIT_MIN", "LocalSolver", "csr"]
 
@@ -150,35 +149,7 @@ class LocalSolver:
         smaller half.  Same flops as one band of the same width, but each
         thread factors half the rows.  The band reported is the wider half's.
         """
-        if accel.compiled("linalg", k, min_size=0) is None:
-            return None
-        from . import compiled_split as split_kernels
-
-        fns = split_routines()
-        if fns is None:
-            if notes is not None:
-                notes.append(FALLBACKS.get("split", "split solver unavailable"))
-            return None
-        # one thread too: the halves are then factored one after the other, with the same arithmetic,
-        # so a dab's result does not depend on how many threads the machine can give it
-        perm, inv, o1, o2, lev1, lev2 = np.empty((6, k), np.int64)
-        dims = np.empty(7, np.int64)
-        if split_kernels.split_order(row_ptr(ri, k), ri, ci, max(64, k // 5), perm, inv, o1, o2, lev1, lev2,
-                                     dims) != 0:
-            return None
-        band = int(max(dims[3], dims[4]))
-        for h in range(2):
-            dims[3 + h] = lapack_band(int(dims[3 + h]), int(dims[h]))
-        buf = self.work(split_kernels.split_work_size(dims))
-        X = np.empty((k, 3))
-        with SingleThreadBLAS():
-            status = split_kernels.split_solve(*fns, ri, ci, np.ascontiguousarray(vi, dtype=np.float64),
-                                               np.ascontiguousarray(diag, dtype=np.float64),
-                                               np.ascontiguousarray(rhs, dtype=np.float64), perm, inv, dims,
-                                               buf, X)
-        if status != 0:
-            return None
-        return X, "split", band
+        return accel.kernels("local", k).split_solve(self, k, ri, ci, vi, diag, rhs, notes)
 
 
 def csr(k: int, ri, ci, vi, diag) -> sp.csr_matrix:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from .. import accel
 
@@ -42,31 +41,7 @@ def local_order(k: int, ri, ci, grouped: bool = True):
     order depends on the connectivity only.  ``grouped``: the rows ``ri``
     come grouped in increasing order (the compiled search needs that).
     """
-    from scipy.sparse.csgraph import breadth_first_order, reverse_cuthill_mckee
-
-    fast = accel.compiled("linalg", k, min_size=0)
-    if grouped and fast is not None:   # the same searches, compiled, without a CSR matrix
-        from .compiled_split import cm_order
-
-        perm, inv = np.empty(k, np.int64), np.empty(k, np.int64)
-        o2, lev1, lev2 = np.empty((3, k), np.int64)
-        if cm_order(row_ptr(ri, k), ri, ci, perm, inv, o2, lev1, lev2):
-            return perm, inv
-    # float64 data: the graph routines would otherwise convert (copy) it
-    if grouped:
-        ptr = row_ptr(ri, k, np.int32)
-        G = sp.csr_matrix((np.ones(ri.size), ci.astype(np.int32), ptr), shape=(k, k))
-    else:
-        G = sp.csr_matrix((np.ones(ri.size), (ri, ci)), shape=(k, k))
-    o = breadth_first_order(G, 0, directed=True, return_predecessors=False)
-    if o.size == k:
-        perm = breadth_first_order(G, int(o[-1]), directed=True, return_predecessors=False).astype(np.int64)
-        perm2 = breadth_first_order(G, int(perm[-1]), directed=True, return_predecessors=False).astype(np.int64)
-        return narrower(k, ri, ci, perm, perm2)
-    perm = reverse_cuthill_mckee(G, symmetric_mode=True).astype(np.int64)
-    inv = np.empty(k, np.int64)
-    inv[perm] = np.arange(k)
-    return perm, inv
+    return accel.kernels("local", k).local_order(k, ri, ci, grouped)
 
 
 def narrower(k: int, ri, ci, perm, perm2):

@@ -161,17 +161,19 @@ class SPDSolver:
         self.preconditioner = preconditioner
         self.stats = SolveStats(method)
         self._factor = None
-        self._splits = None
+        #: where each row's strictly lower part ends and strictly upper part starts (the Gauss–Seidel
+        #: sweeps'), when known
+        self.splits = None
         if diagonal_positions is not None:
             pos = np.asarray(diagonal_positions, dtype=np.int64)
-            self._splits = (pos, pos + 1)
+            self.splits = (pos, pos + 1)
         d = A.diagonal() if diagonal is None else np.asarray(diagonal, dtype=np.float64)
-        self._positive = bool(d.size and d.min() > 0)
-        self._d = d
-        if self._positive:      # the usual case: no temporaries
-            self._minv = np.divide(1.0, d)
+        self.positive = bool(d.size and d.min() > 0)     #: whether A's diagonal is positive
+        self.diagonal = d                                  #: A's diagonal
+        if self.positive:      # the usual case: no temporaries
+            self.minv = np.divide(1.0, d)                  #: the Jacobi preconditioner (1 where d <= 0)
         else:
-            self._minv = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 1.0)
+            self.minv = np.where(d > 0, 1.0 / np.where(d > 0, d, 1.0), 1.0)
 
     def solve(self, B: np.ndarray, X0: np.ndarray | None = None, *, overwrite_b: bool = False) -> np.ndarray:
         """X with A X = B; ``X0`` a starting guess (CG).  ``overwrite_b``: B may serve as
@@ -194,7 +196,7 @@ class SPDSolver:
             return X
         return self._factor.solve(B)
 
-    def _csr(self) -> sp.csr_matrix:
+    def csr(self) -> sp.csr_matrix:
         """A as CSR (a :class:`PairMatrix` converts once, for the paths that need the entries)."""
         if isinstance(self.A, PairMatrix):
             self.A = self.A.tocsr()
@@ -202,7 +204,7 @@ class SPDSolver:
 
     def _factorize(self) -> None:
         self.stats.factorizations += 1
-        A = self._csr().copy()
+        A = self.csr().copy()
         A.sum_duplicates()  # direct solvers need one entry per position
         if self.method == "cholesky":
             import cholespy
@@ -216,155 +218,14 @@ class SPDSolver:
             self._factor = splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A")
 
     def _cg(self, B: np.ndarray, X0: np.ndarray | None, overwrite_b: bool = False):
-        """PCG on all columns at once; returns (X, converged, B).  Jacobi here; the compiled path
-        (:meth:`_cg_kernel`) and ``preconditioner="sgs"`` (:meth:`_cg_sgs`) as the class says.
-
-        ``B`` comes back as given (rebuilt as R + A·X where the compiled path
-        used it as the residual's storage) for a direct solve to take over.
-
-        Stops when every column's preconditioned residual norm sqrt(rᵀM⁻¹r)
-        fell below ``rtol`` × its initial value.  Vectors are stored
-        component-major, (k, n), so every update runs over contiguous length-n
-        rows (an (n, 3) layout makes NumPy loop over the length-3 axis).
-        """
+        """PCG on all columns at once (the linalg kernel family's ``cg``); returns (X, converged, B)."""
         n = self.A.shape[0]
-        squeeze = B.ndim == 1
-        fast = accel.compiled("linalg", n)
         lean = isinstance(self.A, PairMatrix)
-        if self.preconditioner == "sgs" and (lean or not self._positive):
+        if self.preconditioner == "sgs" and (lean or not self.positive):
             raise ParameterError("the 'sgs' preconditioner needs a CSR matrix with a positive diagonal"
                                  + (" (this one is a PairMatrix)" if lean else ""))
-        if fast is not None and (1 if squeeze else B.shape[1]) <= 3 and (lean or (
-                self.A.indices.dtype == np.int32 and self.A.indptr.dtype == np.int32)):
-            return self._cg_kernel(fast, B, X0, squeeze, overwrite_b)
-        if self.preconditioner == "sgs":
-            return self._cg_sgs(B, X0, squeeze)
-        self.stats.preconditioner = "jacobi"
-        A = self._csr()
-        Bt = np.ascontiguousarray((B[:, None] if squeeze else B).T)
-        k = Bt.shape[0]
-        if X0 is None:
-            X = np.zeros_like(Bt)
-        else:
-            X = np.ascontiguousarray(np.asarray(X0, dtype=np.float64).reshape(n, k).T)
-        minv = self._minv
+        return accel.kernels("linalg", n).cg(self, B, X0, overwrite_b)
 
-        def matvec(Y, out):
-            for j in range(k):
-                out[j] = A @ Y[j]
-            return out
-
-        R = np.empty_like(Bt)
-        matvec(X, R)
-        np.subtract(Bt, R, out=R)
-        Z = R * minv
-        rz = np.einsum("ij,ij->i", R, Z)
-        tol2 = (self.rtol ** 2) * rz
-        P = Z.copy()
-        AP = np.empty_like(P)
-        T = np.empty_like(P)
-        maxiter = self._maxiter(n)
-        it = 0
-        while it < maxiter and (rz > tol2).any():
-            it += 1
-            matvec(P, AP)
-            pap = np.einsum("ij,ij->i", P, AP)
-            alpha = np.divide(rz, pap, out=np.zeros_like(rz), where=(pap > 0) & (rz > tol2))
-            np.multiply(P, alpha[:, None], out=T)
-            X += T
-            np.multiply(AP, alpha[:, None], out=T)
-            R -= T
-            np.multiply(R, minv, out=Z)
-            rz_new = np.einsum("ij,ij->i", R, Z)
-            beta = np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz > 0)
-            rz = rz_new
-            P *= beta[:, None]
-            P += Z
-        self.stats.iterations = it
-        converged = not (rz > tol2).any() and bool(np.all(np.isfinite(X)))
-        return (X[0] if squeeze else np.ascontiguousarray(X.T)), converged, B
-
-    def _maxiter(self, n: int) -> int:
+    def iteration_cap(self, n: int) -> int:
+        """The most CG iterations of a solve with n unknowns (``maxiter``, else :func:`cg_maxiter`)."""
         return self.maxiter or cg_maxiter(n)
-
-    def _cg_sgs(self, B: np.ndarray, X0: np.ndarray | None, squeeze: bool):
-        """The symmetric Gauss–Seidel PCG of ``compiled.sgs_pcg3`` with SciPy's triangular solves
-        (the NumPy twin of that kernel: the same formulas, (n, k) layout); returns (X, converged, B)."""
-        from scipy.sparse.linalg import spsolve_triangular
-
-        self.stats.preconditioner = "sgs"
-        A = self._csr()
-        n = A.shape[0]
-        Bn = B[:, None] if squeeze else B
-        X = np.zeros(Bn.shape) if X0 is None else np.array(np.asarray(X0, dtype=np.float64).reshape(Bn.shape))
-        d = self._d[:, None]
-        E = sp.tril(A, 0, format="csr")
-        F = sp.triu(A, 0, format="csr")
-        U = sp.triu(A, 1, format="csr")
-        R = spsolve_triangular(E, Bn - U @ X, lower=True) - X     # r̂0 = E⁻¹(b − U x0) − x0
-        P = d * R
-        rz = np.einsum("ij,ij->j", R, R * d)
-        tol2 = (self.rtol ** 2) * rz
-        maxiter = self._maxiter(n)
-        it = 0
-        while it < maxiter and (rz > tol2).any():
-            it += 1
-            T = spsolve_triangular(F, P, lower=False)            # t = F⁻¹ p
-            Q = T + spsolve_triangular(E, P - d * T, lower=True)  # E⁻¹ A F⁻¹ p = t + E⁻¹(p − D t)
-            pq = np.einsum("ij,ij->j", P, Q)
-            alpha = np.divide(rz, pq, out=np.zeros_like(rz), where=(pq > 0) & (rz > tol2))
-            X += alpha * T                                        # x = F⁻¹ y
-            R -= alpha * Q
-            rz_new = np.einsum("ij,ij->j", R, R * d)
-            beta = np.divide(rz_new, rz, out=np.zeros_like(rz), where=rz > 0)
-            rz = rz_new
-            P = d * R + beta * P
-        self.stats.iterations = it
-        converged = not (rz > tol2).any() and bool(np.all(np.isfinite(X)))
-        return (X[:, 0] if squeeze else X), converged, B
-
-    def _cg_kernel(self, fast, B: np.ndarray, X0: np.ndarray | None, squeeze: bool,
-                   overwrite_b: bool = False):
-        """:meth:`_cg` compiled, (n, 3) layout: Jacobi (all cores) or symmetric Gauss–Seidel (one core;
-        ``preconditioner`` "auto" on a CSR matrix with sorted columns and a positive diagonal, or "sgs")."""
-        A = self.A
-        n = A.shape[0]
-        k = 1 if squeeze else B.shape[1]
-        if k == 3:   # B is C-contiguous float64 (solve() made it so); the kernel only reads it
-            B3 = B
-            X = np.array(X0, dtype=np.float64, order="C") if X0 is not None else np.zeros((n, 3))
-        else:
-            B3 = np.zeros((n, 3))
-            B3[:, :k] = B.reshape(n, k)
-            X = np.zeros((n, 3))
-            if X0 is not None:
-                X[:, :k] = np.asarray(X0, dtype=np.float64).reshape(n, k)
-        maxiter = self._maxiter(n)
-        reused = overwrite_b or B3 is not B
-        sgs = False
-        if isinstance(A, PairMatrix):
-            its = fast.pcg3_pairs(A.pairs, A.weights, A.free, A.d, self._minv, B3, X, self.rtol, maxiter,
-                                  overwrite_b=reused)
-        else:
-            if self.preconditioner != "jacobi" and self._positive and self._splits is None:
-                self._splits = fast.row_splits(A.indptr, A.indices)
-                if self._splits is None and self.preconditioner == "sgs":   # unsorted columns: a sorted copy
-                    self.A = A = A.sorted_indices()
-                    self._splits = fast.row_splits(A.indptr, A.indices)
-            sgs = self.preconditioner != "jacobi" and self._positive and self._splits is not None
-            data = np.ascontiguousarray(A.data, dtype=np.float64)
-            if sgs:
-                its = fast.sgs_pcg3(A.indptr, A.indices, data, self._splits, self._d, B3, X, self.rtol, maxiter,
-                                    overwrite_b=reused)
-            else:
-                its = fast.pcg3(A.indptr, A.indices, data, self._minv, B3, X, self.rtol, maxiter,
-                                overwrite_b=reused)
-        self.stats.preconditioner = "sgs" if sgs else "jacobi"
-        self.stats.iterations = int(its)
-        # the kernel stops at convergence or at the cap: reaching the cap counts as not converged
-        converged = self.stats.iterations < maxiter and bool(np.all(np.isfinite(X)))
-        if not converged and reused and B3 is B:   # B holds the residual: rebuild B
-            # Jacobi: r = B − A X; SGS: r̂ = E⁻¹ r with E = D + L, the lower triangle of A
-            B = (sp.tril(A, 0, format="csr") @ B3 if sgs else B3) + A @ X
-        Xk = X[:, 0].copy() if squeeze else (X if k == 3 else X[:, :k].copy())
-        return Xk, converged, B

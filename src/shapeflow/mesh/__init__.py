@@ -7,6 +7,7 @@ are accepted only at this boundary (:func:`normalize_faces`).
 
 from .core import Mesh, concatenate
 from .topology import Diagnostics, Topology
-from .validate import WEIGHT, normalize_faces
+from .validate import normalize_faces
+from .weights import WEIGHT
 
 __all__ = ["Mesh", "Topology", "Diagnostics", "normalize_faces", "concatenate", "WEIGHT"]

@@ -1,7 +1,7 @@
 """Compiled topology: unique edges and the first face with a repeated vertex.
 
-The NumPy/SciPy reference is :mod:`shapeflow.mesh.topology` and :mod:`shapeflow.mesh.validate`; the
-tests compare the two.
+:class:`MeshNumba` is the numba implementation of the mesh family; the NumPy/SciPy reference is
+:class:`shapeflow.mesh.kernels.MeshKernels`, and the tests compare the two.
 Conventions of all compiled kernels: :mod:`shapeflow.accel`.
 """
 
@@ -11,10 +11,11 @@ import numpy as np
 from numba import get_num_threads, njit, prange
 
 from ..accel import zeros
+from .kernels import MeshKernels
 
 
 def edge_data(fi, offsets, n, it=np.int64):
-    """Same outputs as the NumPy ``Topology._edge_data`` (index arrays of type ``it``).
+    """Same outputs as the NumPy ``MeshKernels.edge_data`` (index arrays of type ``it``).
 
     Half-edges are bucketed by their low vertex (counting sort, stable in
     corner order), then each small bucket is insertion-sorted by the high
@@ -189,3 +190,16 @@ def _first_bad_face(fi, offsets, n, nt):
     for t in range(nt):
         best = min(best, first[t])
     return best if best < m else -1
+
+
+class MeshNumba(MeshKernels):
+    """The mesh family compiled: the edges in one bucketed pass, the faces checked in one pass."""
+
+    backend = "numba"
+
+    def edge_data(self, topology):
+        return edge_data(topology.face_indices, topology.face_offsets, topology.n_vertices, topology.index_dtype)
+
+    def check_faces(self, indices, offsets, n):
+        if first_bad_face(indices, offsets, n) >= 0:     # the reference says what is wrong
+            super().check_faces(indices, offsets, n)

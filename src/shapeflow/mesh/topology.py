@@ -104,30 +104,7 @@ class Topology:
 
     @cached_property
     def _edge_data(self):
-        fi = self.face_indices
-        fast = accel.compiled("mesh", self.n_vertices)
-        if fast is not None:
-            return fast.edge_data(fi, self.face_offsets, self.n_vertices, self.index_dtype)
-        a = fi
-        b = fi[self.corner_next]
-        lo = np.minimum(a, b)
-        hi = np.maximum(a, b)
-        key = lo * np.int64(self.n_vertices) + hi
-        order = np.argsort(key, kind="stable")
-        sk = key[order]
-        new = np.empty(sk.size, dtype=bool)
-        if sk.size:
-            new[0] = True
-            np.not_equal(sk[1:], sk[:-1], out=new[1:])
-        it = self.index_dtype
-        eid_sorted = np.cumsum(new, dtype=it) - 1
-        corner_edge = np.empty(sk.size, dtype=it)
-        corner_edge[order] = eid_sorted
-        starts = np.flatnonzero(new)
-        first = order[starts]
-        edges = np.stack([lo[first], hi[first]], axis=1).astype(it)
-        offsets = np.append(starts, sk.size).astype(it)
-        return edges, corner_edge, offsets, order.astype(it)
+        return accel.kernels("mesh", self.n_vertices).edge_data(self)
 
     @property
     def edges(self) -> np.ndarray:

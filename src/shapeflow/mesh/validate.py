@@ -15,12 +15,9 @@ import numpy as np
 from .. import accel
 from ..errors import MeshError
 from ..types import Faces
+from .weights import WEIGHT, check_weights
 
 __all__ = ["WEIGHT", "as_vertices", "as_index_array", "normalize_faces", "validate_csr", "as_attribute"]
-
-
-#: Name of the per-vertex weight attribute (values in [0, 1]).
-WEIGHT = "weight"
 
 
 def as_vertices(vertices) -> np.ndarray:
@@ -101,32 +98,7 @@ def validate_csr(indices: np.ndarray, offsets: np.ndarray, n: int) -> None:
             f"face offsets must start at 0 and end at the number of corners ({indices.size}); "
             f"got {offsets.size} offsets"
         )
-    fast = accel.compiled("mesh", n)
-    if fast is not None and fast.first_bad_face(indices, offsets, n) < 0:
-        return   # one compiled pass found nothing; otherwise the checks below say what is wrong
-    sizes = np.diff(offsets)
-    small = np.flatnonzero(sizes < 3)
-    if small.size:
-        f = int(small[0])
-        raise MeshError(f"face {f} has {int(sizes[f])} corners; a face needs at least 3 ({small.size} such faces)")
-    if indices.size and (indices.min() < 0 or indices.max() >= n):
-        bad = np.flatnonzero((indices < 0) | (indices >= n))
-        c = int(bad[0])
-        f = int(np.searchsorted(offsets, c, side="right") - 1)
-        raise MeshError(
-            f"face {f} refers to vertex {int(indices[c])}, out of range [0, {n}) "
-            f"({bad.size} such corners)"
-        )
-    # a vertex repeated inside one face: sort each face's corners, per face size
-    for s in np.unique(sizes):
-        faces_s = np.flatnonzero(sizes == s)
-        block = indices[offsets[faces_s][:, None] + np.arange(s)]
-        block.sort(axis=1)
-        rep = (block[:, 1:] == block[:, :-1]).any(axis=1)
-        if rep.any():
-            f = int(faces_s[np.flatnonzero(rep)[0]])
-            corners = indices[offsets[f]:offsets[f + 1]].tolist()
-            raise MeshError(f"face {f} repeats a vertex: {corners}")
+    accel.kernels("mesh", n).check_faces(indices, offsets, n)
 
 
 def as_attribute(name: str, values, n: int) -> np.ndarray:
@@ -150,11 +122,6 @@ def as_attribute(name: str, values, n: int) -> np.ndarray:
         i = int(np.flatnonzero(~np.isfinite(a.reshape(n, -1)).all(axis=1))[0])
         raise MeshError(f"attribute '{name}' has a non-finite value at vertex {i}")
     if name == WEIGHT:
-        if a.ndim != 1:
-            raise MeshError(f"weights must have shape ({n},), got {a.shape}")
-        out = np.flatnonzero((a < 0) | (a > 1))
-        if out.size:
-            i = int(out[0])
-            raise MeshError(f"weights must lie in [0, 1]; vertex {i} has {float(a[i])!r} ({out.size} such vertices)")
+        check_weights("weights", a, n)
     a.flags.writeable = False
     return a

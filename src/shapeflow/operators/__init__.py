@@ -29,17 +29,17 @@ Schemes (how a face contributes to W)
     relative to a quad); its ring area adds the whole corner-triangle area to
     each of its three vertices.
 
-Degenerate elements: see :mod:`shapeflow.operators.weights`.
+Degenerate elements: see :mod:`shapeflow.operators.cotan`.
 
-Layout: :mod:`~shapeflow.operators.pattern` (topology only) → :mod:`~shapeflow.operators.weights`
+Layout: :mod:`~shapeflow.operators.pattern` (topology only) → :mod:`~shapeflow.operators.cotan`
 (cotangents at given positions) → :mod:`~shapeflow.operators.laplacian` and
 :mod:`~shapeflow.operators.curvature`.
 """
 
+from .cotan import REL_EDGE_TOL, REL_SHAPE_TOL, THRESHOLDS, CotanWeights, cotan_weights
 from .curvature import mean_curvature, mean_curvature_normal, vertex_areas
 from .laplacian import laplacian
 from .pattern import SCHEMES, check_scheme, operator_pattern
-from .weights import REL_EDGE_TOL, REL_SHAPE_TOL, THRESHOLDS, CotanWeights, cotan_weights
 
 __all__ = [
     "SCHEMES", "THRESHOLDS", "REL_EDGE_TOL", "REL_SHAPE_TOL", "CotanWeights", "cotan_weights", "laplacian",

@@ -1,7 +1,7 @@
 """Compiled operator assembly: the sparse pattern, the corner cotangent sums and the matrix fill.
 
-The NumPy/SciPy reference is :mod:`shapeflow.operators.pattern` and
-:mod:`shapeflow.operators.weights`; the tests compare the two.
+:class:`OperatorNumba` is the numba implementation of the operators family; the NumPy/SciPy
+reference is :class:`shapeflow.operators.kernels.OperatorKernels`, and the tests compare the two.
 Conventions of all compiled kernels: :mod:`shapeflow.accel`.
 """
 
@@ -12,10 +12,12 @@ from numba import get_num_threads, njit, prange
 
 from ..accel import zeros
 from ..geometry.compiled import corner_triangle
+from .cotan import BLENDER_MIN, FLT_EPSILON, REL_EDGE_TOL, REL_SHAPE_TOL
+from .kernels import OperatorKernels, no_extras
 
 
 def fill_symmetric(nnz, pos_diag, diag, pos_upper, pos_lower, off):
-    """The data array of a matrix on a ``_Structure`` pattern."""
+    """The data array of a matrix on an ``OperatorPattern``."""
     data = np.empty(nnz)
     _fill_symmetric(data, pos_diag, diag, pos_upper, pos_lower, off)
     return data
@@ -32,7 +34,7 @@ def _fill_symmetric(data, pos_diag, diag, pos_upper, pos_lower, off):
 
 def assemble_corners(V, fi, offsets, corner_edge, skip_pair, tqlbo, edges,
                      P, n, blender_rules, rel_edge_tol, rel_shape_tol, blender_min, flt_eps):
-    """``operators.weights.assemble`` for the corner triangles in two passes, no per-corner temporaries.
+    """``operators.cotan.assemble`` for the corner triangles in two passes, no per-corner temporaries.
 
     Same cotangent formulas and order of operations per corner as
     ``operators.corner_cotangents``, same locking rules; the pair weights and
@@ -387,3 +389,49 @@ def _permute_pattern(indptr, indices, perm, inv, ptr, idx, src):
                 q -= 1
             idx[q] = col
             src[q] = s + t
+
+
+class OperatorNumba(OperatorKernels):
+    """The operators family compiled."""
+
+    backend = "numba"
+
+    def pattern_core(self, topology, scheme):
+        sizes = topology.face_sizes
+        if not (scheme == "blender" or sizes.size == 0 or int(sizes.max()) <= 4):
+            return super().pattern_core(topology, scheme)      # fan triangles of tqlbo n-gons
+        # the corner weights depend on the face size only: the pattern makes them on demand
+        skip_pair, pairs = structure_core(topology.face_indices, topology.face_offsets, topology.corner_edge,
+                                          topology.edges, topology.n_vertices)
+        return pairs, skip_pair, no_extras(), None
+
+    def pair_pattern(self, pairs, n):
+        if 2 * pairs.shape[0] + n >= 2**31 - 1:
+            return super().pair_pattern(pairs, n)
+        return pair_pattern(pairs, n)
+
+    def fill_symmetric(self, nnz, pos_diag, diag, pos_upper, pos_lower, off):
+        return fill_symmetric(nnz, pos_diag, np.asarray(diag, np.float64), pos_upper, pos_lower,
+                              np.asarray(off, np.float64))
+
+    def locality(self, pattern):
+        """Reverse Cuthill–McKee order of the pattern's graph (scipy), the pattern permuted compiled."""
+        import scipy.sparse as sp
+        from scipy.sparse.csgraph import reverse_cuthill_mckee
+
+        indptr, indices, n = pattern.indptr, pattern.indices, pattern.n
+        G = sp.csr_matrix((np.ones(indices.size), indices, indptr), shape=(n, n))
+        perm = reverse_cuthill_mckee(G, symmetric_mode=True).astype(np.int64)
+        ptr, idx, src = permute_pattern(indptr, indices, perm)
+        inv = np.empty_like(perm)
+        inv[perm] = np.arange(perm.size)
+        return perm, inv, ptr, idx, src
+
+    def assemble_corners(self, V, pattern, topology, thresholds):
+        return assemble_corners(np.ascontiguousarray(V, dtype=np.float64), pattern.fi, topology.face_offsets,
+                                pattern.corner_edge, pattern.skip_pair, pattern.scheme == "tqlbo", topology.edges,
+                                pattern.pairs.shape[0], topology.n_vertices, thresholds == "blender",
+                                REL_EDGE_TOL, REL_SHAPE_TOL, BLENDER_MIN, FLT_EPSILON)
+
+    def pair_degree(self, pairs, pw, n):
+        return pair_degree(pairs, pw, n)

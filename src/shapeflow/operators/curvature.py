@@ -10,8 +10,8 @@ from ..geometry.measures import pow2_exponent
 from ..geometry.normals import vertex_normals
 from ..mesh import Mesh
 from ..mesh.convert import as_mesh
+from .cotan import assemble
 from .pattern import OperatorPattern
-from .weights import assemble
 
 __all__ = ["vertex_areas", "areas_from", "mean_curvature_normal", "mean_curvature"]
 

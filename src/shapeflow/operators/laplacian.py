@@ -8,7 +8,7 @@ import scipy.sparse as sp
 from .. import accel
 from ..mesh import Mesh
 from ..mesh.convert import as_mesh
-from .weights import assemble
+from .cotan import assemble
 
 __all__ = ["laplacian"]
 

@@ -94,28 +94,15 @@ class OperatorPattern:
 
     def __init__(self, topo, scheme: str):
         n = topo.n_vertices
-        sizes = topo.face_sizes
-        offs = topo.face_offsets
         fi = topo.face_indices
         corner_edge = topo.corner_edge
-        edges = topo.edges
         # a weak reference: the topology caches this structure, and a strong one would make a
         # cycle that only the cyclic garbage collector frees (fresh meshes piled up between its runs)
         self._topo_ref = weakref.ref(topo)
         self.scheme = scheme
-        self._corner_w = None
-        self._locality = None
-        fast = accel.compiled("operators", n)
-        if fast is not None and (scheme == "blender" or sizes.size == 0 or int(sizes.max()) <= 4):
-            # no fan triangles: the compiled twin of the code below (corner weights made on demand)
-            self.skip_pair, pairs = fast.structure_core(fi, offs, corner_edge, edges, n)
-            self.extra_tris = np.zeros((0, 3), np.int64)
-            self.extra_w = np.zeros(0)
-            self.extra_face = np.zeros(0, np.int64)
-            self.extra_pair = np.zeros((0, 3), np.int64)
-        else:
-            pairs = self._numpy_core(scheme, n, sizes, offs, fi, topo.corner_next, topo.corner_prev,
-                                     corner_edge, edges)
+        self._locality = {}        # per implementation (the reference has none)
+        (pairs, self.skip_pair, (self.extra_tris, self.extra_w, self.extra_face, self.extra_pair),
+         self._corner_w) = accel.kernels("operators", n).pattern_core(topo, scheme)
         self.pairs = pairs
         self.n = n
         self.corner_edge = corner_edge
@@ -130,17 +117,7 @@ class OperatorPattern:
         with self._csr_lock:
             if self._csr is None:
                 pairs, n = self.pairs, self.n
-                P = pairs.shape[0]
-                fast = accel.compiled("operators", n)
-                if fast is not None and 2 * P + n < 2**31 - 1:
-                    indptr, indices, pos_upper, pos_lower, pos_diag = fast.pair_pattern(pairs, n)
-                else:
-                    rows = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])
-                    cols = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)])
-                    indptr, indices, entry_at = csr_pattern(rows, cols, n)
-                    pos_of = np.empty_like(entry_at)
-                    pos_of[entry_at] = np.arange(entry_at.size)
-                    pos_upper, pos_lower, pos_diag = pos_of[:P], pos_of[P:2 * P], pos_of[2 * P:]
+                indptr, indices, pos_upper, pos_lower, pos_diag = accel.kernels("operators", n).pair_pattern(pairs, n)
                 # shared by every matrix built on this pattern: read-only, so no scipy
                 # operation can rewrite it in place for everyone
                 indptr.flags.writeable = False
@@ -209,70 +186,14 @@ class OperatorPattern:
         """Area weight of each corner triangle."""
         return self._weights()[1]
 
-    def _numpy_core(self, scheme, n, sizes, offs, fi, nxt, prv, corner_edge, edges) -> np.ndarray:
-        """Corner weights, chords, skip pairs and n-gon fan triangles; returns the pairs."""
-        n_edges = edges.shape[0]
-        c = fi.size
-        cs = np.repeat(sizes, sizes)
-        self._corner_w = corner_weights(cs, scheme)
-        is_tri = cs == 3
-        # --- chords: the skip pair (prev, next) of corners of faces with >= 4 corners
-        local = np.arange(c) - np.repeat(offs[:-1], sizes)
-        ch = np.flatnonzero(cs >= 4)
-        primary = ch[~((cs[ch] == 4) & (local[ch] >= 2))]
-        va, vb = fi[prv[primary]], fi[nxt[primary]]
-        # --- extra fan triangles of tqlbo n-gons
-        xt, xw, xf, xslot_keys, xslot_edge = (ngon_fans(sizes, offs, fi, corner_edge, n) if scheme == "tqlbo"
-                                              else ([], [], [], [], []))
-        # Chords are not deduplicated: a chord shared by two faces (or equal to an
-        # edge) is simply two entries of the sparse pattern, which add up in any
-        # product; direct solvers and cotan_weights() canonicalise a copy.
-        n_primary = primary.size
-        chord_ends = [np.stack([np.minimum(va, vb), np.maximum(va, vb)], axis=1)]
-        xk = np.concatenate(xslot_keys) if xslot_keys else np.zeros((0, 3), np.int64)
-        xmask = xk >= 0
-        if xmask.any():
-            k_ = xk[xmask]
-            chord_ends.append(np.stack([k_ // n, k_ % n], axis=1))
-        pairs = np.concatenate([edges] + chord_ends)
-        if n < 2**31 - 1:
-            pairs = pairs.astype(np.int32)   # as the compiled twin: half the bytes
-        skip_pair = np.full(c, -1, dtype=np.int64)
-        skip_pair[primary] = n_edges + np.arange(n_primary)
-        sec = ch[(cs[ch] == 4) & (local[ch] >= 2)]
-        skip_pair[sec] = skip_pair[sec - 2]                   # a quad's corners k, k+2 share a diagonal
-        tri_c = np.flatnonzero(is_tri)
-        skip_pair[tri_c] = corner_edge[nxt[tri_c]]            # a triangle's skip pair is an edge
-        self.skip_pair = skip_pair
-        if xt:
-            self.extra_tris = np.concatenate(xt)
-            self.extra_w = np.concatenate(xw)
-            self.extra_face = np.concatenate(xf)
-            sp_ = np.concatenate(xslot_edge)
-            sp_[xmask] = n_edges + n_primary + np.arange(int(xmask.sum()))
-            self.extra_pair = sp_
-        else:
-            self.extra_tris = np.zeros((0, 3), np.int64)
-            self.extra_w = np.zeros(0)
-            self.extra_face = np.zeros(0, np.int64)
-            self.extra_pair = np.zeros((0, 3), np.int64)
-        return pairs
-
     def matrix(self, diag: np.ndarray, off: np.ndarray, *, copy_pattern: bool = False) -> sp.csr_matrix:
         """Symmetric CSR matrix with the given diagonal and per-pair values.
 
         The index arrays are the shared, read-only pattern unless
         ``copy_pattern`` (needed before any in-place structural change).
         """
-        fast = accel.compiled("operators", self.n)
-        if fast is not None:
-            data = fast.fill_symmetric(self.indices.size, self.pos_diag, np.asarray(diag, np.float64),
-                                    self.pos_upper, self.pos_lower, np.asarray(off, np.float64))
-        else:
-            data = np.empty(self.indices.size)
-            data[self.pos_diag] = diag
-            data[self.pos_upper] = off
-            data[self.pos_lower] = off
+        data = accel.kernels("operators", self.n).fill_symmetric(self.indices.size, self.pos_diag, diag, self.pos_upper,
+                                                                 self.pos_lower, off)
         return self.matrix_from_data(data, copy_pattern=copy_pattern)
 
     def locality(self):
@@ -287,19 +208,10 @@ class OperatorPattern:
         (126K-vertex Suzanne: 2.1 -> 1.6 ms per product).  None without the
         compiled kernels.
         """
-        fast = accel.compiled("operators", self.n)
-        if fast is None:
-            return None
-        if self._locality is None:
-            from scipy.sparse.csgraph import reverse_cuthill_mckee
-
-            G = sp.csr_matrix((np.ones(self.indices.size), self.indices, self.indptr), shape=(self.n, self.n))
-            perm = reverse_cuthill_mckee(G, symmetric_mode=True).astype(np.int64)
-            ptr, idx, src = fast.permute_pattern(self.indptr, self.indices, perm)
-            inv = np.empty_like(perm)
-            inv[perm] = np.arange(perm.size)
-            self._locality = (perm, inv, ptr, idx, src)
-        return self._locality
+        k = accel.kernels("operators", self.n)
+        if k.backend not in self._locality:
+            self._locality[k.backend] = k.locality(self)
+        return self._locality[k.backend]
 
     def matrix_from_data(self, data: np.ndarray, *, copy_pattern: bool = False) -> sp.csr_matrix:
         """The CSR matrix with this pattern and the given ``data`` (one value per stored entry)."""

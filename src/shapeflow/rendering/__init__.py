@@ -23,7 +23,7 @@ What is drawn
   hidden (:mod:`.lines`): those whose faces bend by more than a feature angle
   (``30``, or ``True`` for 30°), those the mesh marks (``"mesh"``: smoothing
   groups, crease tags, a subdivision's creases), or given vertex pairs; one
-  choice for all panels or one per mesh, in ``feature_color`` (an orange red)
+  choice for all panels or one per mesh, in ``feature_color`` (black)
   ``feature_width`` pixels wide.
 * Colour fields (``color=``): ``"curvature"`` (signed mean curvature with
   barycentric areas, or the mesh's ``curvature`` attribute when it has one:

@@ -51,6 +51,6 @@ VIEW_ANGLE = 20.0   # vertical field of view of the camera, degrees
 MARGIN = 0.04       # free border around the framed model, fraction of the panel
 CLAY = (0.80, 0.78, 0.74)
 EDGE_COLOR = (0.12, 0.12, 0.14)
-FEATURE_COLOR = (0.85, 0.22, 0.05)   # feature lines: an orange red, apart from the clay and the wireframe
+FEATURE_COLOR = (0.0, 0.0, 0.0)      # feature lines: black, which stands out on the clay and on every colour map
 BACKGROUND = (1.0, 1.0, 1.0)
 MSAA_MAX_FACES = 300_000  # larger meshes: FXAA instead of 8x multisampling (speed)

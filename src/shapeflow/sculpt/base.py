@@ -12,12 +12,12 @@ import numpy as np
 
 from .. import accel, params
 from ..errors import ParameterError
-from ..flow.options import resolve_weights
 from ..geometry.normals import refresh_normals
 from ..mesh import Mesh
 from ..mesh.convert import as_mesh
+from ..mesh.weights import resolve_weights
 from ..types import Falloff, Weights
-from .grid import CellGrid, sq_norms
+from .grid import within
 from .numbering import locality_order, renumbered
 from .stroke import as_point, as_points, check_falloff, positive, resample_polyline
 
@@ -98,6 +98,7 @@ class BrushBase:
         self.rebuild_fraction = positive("rebuild_fraction", rebuild_fraction)
         self._slot = np.full(n, -1, dtype=np.int64)     # scratch: row of a vertex in the current region
         self._tree = None
+        self._tree_kernels = None     # the sculpt kernels that built the tree
         self._tree_V = None
         self._tau = 0.0
         self._far = None
@@ -188,22 +189,16 @@ class BrushBase:
     # --- spatial queries ---------------------------------------------------------------
     def _ensure_tree(self) -> None:
         n = self._n
-        grid = accel.compiled("sculpt", n, min_size=0) is not None     # the compiled grid, else SciPy's k-d tree
+        kern = accel.kernels("sculpt", n)       # the compiled grid, else SciPy's k-d tree
         if (self._tree is not None and self._far_count <= max(4096, n // 16)
                 and self._tau <= 2.0 * self._radius
-                and isinstance(self._tree, CellGrid) == grid
-                and (not grid or self._radius + self._tau <= 4.0 * self._tree.h)):
+                and self._tree_kernels is kern
+                and self._tree.fits(self._radius + self._tau)):
             return
         self._tree_V = self._V.copy()
         self._tau = self.rebuild_fraction * self._radius
-        if not n:
-            self._tree = None
-        elif grid:
-            self._tree = CellGrid(self._tree_V, self._radius + self._tau)
-        else:
-            from scipy.spatial import cKDTree
-
-            self._tree = cKDTree(self._tree_V)
+        self._tree = kern.spatial_index(self._tree_V, self._radius + self._tau) if n else None
+        self._tree_kernels = kern
         self._far = np.zeros(n, dtype=bool)
         self._far_list = np.zeros(0, np.int64)
         self._far_count = 0
@@ -220,26 +215,11 @@ class BrushBase:
         self._ensure_tree()
         if self._tree is None:
             return np.zeros(0, np.int64), np.zeros(0)
-        if isinstance(self._tree, CellGrid):
-            S, d = self._tree.query(self._V, self._far, c, r + self._tau, r)   # skips the far vertices
-            if self._far_count:
-                Sf, df = self._within(self._far_list[:self._far_count], c, r)
-                S, d = np.concatenate([S, Sf]), np.concatenate([d, df])
-            return S, d
-        found = self._tree.query_ball_point(c, r + self._tau, return_sorted=False)
-        cand = np.fromiter(found, dtype=np.int64, count=len(found))
+        S, d = self._tree.query(self._V, self._far, c, r + self._tau, r)   # skips the far vertices
         if self._far_count:
-            cand = np.concatenate([cand[~self._far[cand]], self._far_list[:self._far_count]])
-        return self._within(cand, c, r)
-
-    def _within(self, cand: np.ndarray, c: np.ndarray, r: float):
-        """The candidates within ``r`` of ``c`` at the current positions, and their distances."""
-        if cand.size == 0:
-            return cand, np.zeros(0)
-        diff = self._V.take(cand, axis=0, mode="clip") - c     # (row take: ~4x faster than V[cand])
-        d2 = sq_norms(diff)
-        keep = d2 <= r * r
-        return cand[keep], np.sqrt(d2[keep])
+            Sf, df = within(self._V, self._far_list[:self._far_count], c, r)
+            S, d = np.concatenate([S, Sf]), np.concatenate([d, df])
+        return S, d
 
     def _track(self, idx: np.ndarray) -> None:
         """After ``idx`` moved: mark those now farther than ``tau`` from their indexed position."""

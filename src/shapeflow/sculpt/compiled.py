@@ -1,6 +1,7 @@
 """Compiled brush kernels: the cotangent cache update, the dab's region and system, the grid query.
 
-The NumPy/SciPy reference is :mod:`shapeflow.sculpt`; the tests compare the two.
+:class:`SculptNumba` is the numba implementation of the sculpt family; the NumPy/SciPy reference
+is :class:`shapeflow.sculpt.kernels.SculptKernels`, and the tests compare the two.
 Conventions of all compiled kernels: :mod:`shapeflow.accel`.
 """
 
@@ -10,6 +11,9 @@ import numpy as np
 from numba import njit
 
 from ..geometry.compiled import corner_triangle
+from ..operators.cotan import REL_SHAPE_TOL
+from .grid import CellGrid
+from .kernels import SculptKernels
 
 
 @njit(cache=True)
@@ -18,7 +22,7 @@ def brush_update_triangles(tris, tri_vertices, tri_pairs, tri_weight, tri_area_w
     """Recompute triangles ``tris`` of the brush cache in one pass.
 
     Same formulas and order of operations per triangle as ``geometry.cotangent.tri_geometry``
-    and the incremental branch of ``CotanCache._update_triangles``: pair weights
+    and the incremental branch of ``SculptKernels.update_triangles``: pair weights
     change by (new − old), lock counts by degenerate flips.  Pairs whose
     "short edge" state may have flipped are written to ``flips``; returns
     their number (the caller re-checks them).
@@ -73,7 +77,7 @@ def brush_update_triangles(tris, tri_vertices, tri_pairs, tri_weight, tri_area_w
 
 @njit(cache=True)
 def brush_moved_triangles(idx, vf_ptr, vf_face, ft_ptr, fstamp, out):
-    """Triangles of the faces touching vertices ``idx``, each once (``CotanCache._moved``).
+    """Triangles of the faces touching vertices ``idx``, each once (``SculptKernels.moved_triangles``).
 
     ``fstamp`` (one int per face, values >= 0) is the scratch of
     ``sculpt.numbering.unique_stamp``: faces seen are marked −1 and reset to 0.  ``out``
@@ -101,7 +105,7 @@ def brush_moved_triangles(idx, vf_ptr, vf_face, ft_ptr, fstamp, out):
 def brush_classify(S, slot, vn_ptr, vn_nb, vn_pair, pw, rim, deg):
     """Rim flags and degrees of the region ``S`` (``slot[S]`` = 0..ns−1, −1 elsewhere).
 
-    As ``DabSystem._classify``: a vertex is on the rim when a face neighbour lies
+    As ``SculptKernels.classify``: a vertex is on the rim when a face neighbour lies
     outside the region (or it has none); its degree is the sum of its pair
     weights in neighbour order (the order ``bincount`` adds them).  Returns
     the number of neighbour entries of the region.
@@ -125,7 +129,7 @@ def brush_classify(S, slot, vn_ptr, vn_nb, vn_pair, pw, rim, deg):
 
 @njit(cache=True)
 def brush_assemble(S, R, loc, slot, vn_ptr, vn_nb, vn_pair, pw, V, cdiag, bl, Xb, ri, ci, vi, rhs, VU):
-    """The interior system of a dab, as ``DabSystem._solve_region``'s NumPy assembly.
+    """The interior system of a dab, as ``SculptKernels.assemble``.
 
     Rows are the free region rows ``R`` (increasing; ``loc`` maps a region row
     to its unknown, −1 if fixed).  Fills the off-diagonal entries (ri, ci,
@@ -232,3 +236,60 @@ def _grid_cell(starts, order, V, far, c0, c1, c2, r2, out, dist, p, n):
             dist[n] = np.sqrt(d2)
             n += 1
     return n
+
+
+class CompiledGrid(CellGrid):
+    """The uniform grid, queried compiled (:func:`grid_query`)."""
+
+    def query(self, V, far, c, R, r):
+        """The vertices not flagged in ``far`` within ``r`` of ``c`` at the positions ``V`` (which differ
+        from the indexed ones by at most R − r for them), and their distances."""
+        m = grid_query(self.keys, self.starts, self.order, self.dims, self.lo, self.h, V, far,
+                       float(c[0]), float(c[1]), float(c[2]), float(R), float(r), self.out, self.dist)
+        return self.out[:m].copy(), self.dist[:m].copy()
+
+
+class SculptNumba(SculptKernels):
+    """The sculpt family compiled: each kernel one pass, the spatial index a uniform grid."""
+
+    backend = "numba"
+
+    def update_triangles(self, tris, tri_vertices, tri_pairs, tri_weight, tri_area_weight, VT, tri_cot, tri_area,
+                         update_area, tri_degenerate, lock_count, pw, ttri, pshort, short2, initial=False):
+        if initial:
+            return super().update_triangles(tris, tri_vertices, tri_pairs, tri_weight, tri_area_weight, VT,
+                                            tri_cot, tri_area, update_area, tri_degenerate, lock_count, pw, ttri,
+                                            pshort, short2, initial)
+        flips = np.empty(3 * tris.size, tri_pairs.dtype)
+        nf = brush_update_triangles(tris, tri_vertices, tri_pairs, tri_weight, tri_area_weight, VT, tri_cot,
+                                    tri_area, update_area, tri_degenerate, lock_count, pw, ttri, pshort, short2,
+                                    REL_SHAPE_TOL, flips)
+        return flips[:nf]
+
+    def moved_triangles(self, idx, vf_ptr, vf_face, ft_ptr, fstamp, buf):
+        return buf[:brush_moved_triangles(idx, vf_ptr, vf_face, ft_ptr, fstamp, buf)]
+
+    def classify(self, S, slot, vn_ptr, vn_nb, vn_pair, pw):
+        rim = np.empty(S.size, dtype=bool)
+        deg = np.empty(S.size)
+        brush_classify(S, slot, vn_ptr, vn_nb, vn_pair, pw, rim, deg)
+        return rim, deg, None       # assemble walks the neighbours again
+
+    def assemble(self, S, R, loc, slot, vn_ptr, vn_nb, vn_pair, pw, V, cdiag, Rb, Xb, neighbours):
+        ns, k = S.size, R.size
+        U = S[R]
+        bl = np.full(ns, -1, dtype=np.int64)
+        if Rb.size:
+            bl[Rb] = np.arange(Rb.size)
+        nent = int(vn_ptr.take(U + 1, mode="clip").sum() - vn_ptr.take(U, mode="clip").sum())
+        ri = np.empty(nent, np.int64)
+        ci = np.empty(nent, np.int64)
+        vi = np.empty(nent)
+        rhs = np.empty((k, 3))
+        VU = np.empty((k, 3))
+        m = brush_assemble(S, R, loc, slot, vn_ptr, vn_nb, vn_pair, pw, V, cdiag, bl,
+                           np.ascontiguousarray(Xb, dtype=np.float64), ri, ci, vi, rhs, VU)
+        return ri[:m], ci[:m], vi[:m], rhs, VU
+
+    def spatial_index(self, P, h):
+        return CompiledGrid(P, h)

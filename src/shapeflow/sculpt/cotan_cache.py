@@ -5,13 +5,12 @@ from __future__ import annotations
 import numpy as np
 
 from .. import accel
-from ..geometry.cotangent import tri_geometry
 from ..linalg.ordering import row_ptr
 from ..mesh import Mesh
+from ..operators.cotan import REL_EDGE_TOL
 from ..operators.pattern import operator_pattern
-from ..operators.weights import REL_EDGE_TOL, REL_SHAPE_TOL
 from .base import serialised
-from .numbering import csr_by, csr_ranges, unique_stamp
+from .numbering import csr_by, csr_ranges
 
 __all__ = ["CotanCache"]
 
@@ -27,7 +26,7 @@ class CotanCache:
     are recomputed, and the pair weights updated by their change (round-off
     drift over very many dabs is removed by :meth:`refresh`).  Cotangents
     come from :func:`shapeflow.geometry.cotangent.tri_geometry` (compiled:
-    ``sculpt.compiled.brush_update_triangles``, the same formula).
+    ``sculpt.compiled.brush_update_triangles``, the same formula), through the sculpt kernel family.
     """
 
     def _build(self) -> None:
@@ -84,15 +83,15 @@ class CotanCache:
         self._pshort = np.zeros(P + 1, dtype=bool)   # edges shorter than flow's relative threshold
         self._lock_count = np.zeros(n, dtype=np.int64)    # degenerate triangles + short edges at each vertex
         self._fstamp = np.zeros(t.n_faces, dtype=np.int64)
-        self._tri_buf = None               # compiled cache update: the moved triangles
+        self._tri_buf = None               # room for the moved triangles (the compiled update fills it)
         # mean edge length h (flow's "relative" thresholds), from the initial positions
         E_ = t.edges
         el2 = ((self._V[E_[:, 0]] - self._V[E_[:, 1]]) ** 2).sum(axis=1) if E else np.zeros(0)
         h = float(np.sqrt(el2).mean()) if E else 0.0
         self._h = h
         self._short2 = (REL_EDGE_TOL * h) ** 2
-        self._update_triangles(np.arange(T), initial=True)
         self._pw = np.zeros(P + 1)         # pair weights w_ij, plus a zero for "no pair"
+        self._update_triangles(np.arange(T), initial=True)
         self._pw[:P] = np.bincount(self._tri_pairs.reshape(-1), self._tri_cot.reshape(-1), minlength=P)[:P]
         short = el2 <= self._short2
         self._pshort[self._edge_uid] = short
@@ -164,58 +163,10 @@ class CotanCache:
         change (new − old), and the locks (degenerate triangles, short edges)
         by counting flips.
         """
-        tri_vertices, tri_pairs, tri_cot = self._tri_vertices, self._tri_pairs, self._tri_cot
-        fast = None if initial else accel.compiled("sculpt", self._n, min_size=0)
-        if fast is not None:   # the branch below in one compiled pass
-            flips = np.empty(3 * tris.size, self._tri_pairs.dtype)
-            nf = fast.brush_update_triangles(tris, tri_vertices, tri_pairs, self._tri_weight, self._tri_area_weight,
-                                             self._VT, tri_cot, self._tri_area, not self.normalized,
-                                             self._tri_degenerate, self._lock_count, self._pw, self._ttri,
-                                             self._pshort, self._short2, REL_SHAPE_TOL, flips)
-            if nf:
-                self._flip_short(np.unique(flips[:nf]))
-            return
-        tvs = tuple(tri_vertices[q].take(tris, mode="clip") for q in range(3))
-        cot, dbl, sq = tri_geometry(self._VT, tvs)
-        bad = dbl <= REL_SHAPE_TOL * np.maximum(np.maximum(sq[0], sq[1]), sq[2])
-        w = self._tri_weight.take(tris, mode="clip")
-        anybad = bad.any()
-        if anybad:
-            w = np.where(bad, 0.0, w)
-        if not self.normalized or initial:
-            self._tri_area[tris] = 0.5 * dbl * self._tri_area_weight[tris]
-        if initial:
-            for k in range(3):
-                tri_cot[k][tris] = cot[k] * w
-            self._tri_degenerate[tris] = bad
-            if anybad:
-                self._lock_count += np.bincount(np.concatenate([v[bad] for v in tvs]), minlength=self._n)
-            return
-        pw = self._pw
-        tps = []
-        for k in range(3):
-            new = cot[k] * w
-            row = tri_cot[k]
-            old = row.take(tris, mode="clip")
-            row[tris] = new
-            tpk = tri_pairs[k].take(tris, mode="clip")
-            tps.append(tpk)
-            np.add.at(pw, tpk, new - old)
-        chg = self._tri_degenerate.take(tris, mode="clip") != bad
-        if chg.any():
-            delta = np.where(bad[chg], 1, -1)
-            np.add.at(self._lock_count, np.concatenate([v[chg] for v in tvs]), np.tile(delta, 3))
-            self._tri_degenerate[tris[chg]] = bad[chg]
-        # short edges: side 0 of every triangle is an edge or a chord, the sides of
-        # triangle faces are edges; flips are rare
-        short2, pshort = self._short2, self._pshort
-        flips = [tps[0][(sq[0] <= short2) != pshort.take(tps[0], mode="clip")]]
-        tri3 = self._ttri.take(tris, mode="clip")
-        if tri3.any():
-            for k in (1, 2):
-                e = tps[k][tri3]
-                flips.append(e[(sq[k][tri3] <= short2) != pshort[e]])
-        flips = np.concatenate(flips) if len(flips) > 1 else flips[0]
+        flips = accel.kernels("sculpt", self._n).update_triangles(
+            tris, self._tri_vertices, self._tri_pairs, self._tri_weight, self._tri_area_weight, self._VT,
+            self._tri_cot, self._tri_area, not self.normalized or initial, self._tri_degenerate, self._lock_count,
+            self._pw, self._ttri, self._pshort, self._short2, initial)
         if flips.size:
             self._flip_short(np.unique(flips))
 
@@ -237,18 +188,10 @@ class CotanCache:
         VT = self._VT
         for q in range(3):
             VT[q][idx] = new[:, q]
-        fast = accel.compiled("sculpt", self._n, min_size=0)
-        if fast is not None:   # the same triangles, in first-seen order, in one compiled pass
-            if self._tri_buf is None:
-                self._tri_buf = np.empty(self._tri_vertices.shape[1], dtype=np.int64)
-            nt = fast.brush_moved_triangles(idx, self._vf_ptr, self._vf_face, self._ft_ptr, self._fstamp,
-                                         self._tri_buf)
-            self._update_triangles(self._tri_buf[:nt])
-            return
-        ent, _ = csr_ranges(self._vf_ptr, idx)
-        faces = unique_stamp(self._vf_face.take(ent, mode="clip"), self._fstamp)
-        tris, _ = csr_ranges(self._ft_ptr, faces)
-        self._update_triangles(tris)
+        if self._tri_buf is None:                # room for every triangle (an implementation may fill it)
+            self._tri_buf = np.empty(self._tri_vertices.shape[1], dtype=np.int64)
+        self._update_triangles(accel.kernels("sculpt", self._n).moved_triangles(
+            idx, self._vf_ptr, self._vf_face, self._ft_ptr, self._fstamp, self._tri_buf))
 
     @serialised
     def refresh(self) -> None:

@@ -66,21 +66,8 @@ class DabSystem:
         ns = S.size
         slot = self._slot
         slot[S] = np.arange(ns)
-        fast = accel.compiled("sculpt", self._n, min_size=0)
-        if fast is not None:   # the same rim and degrees in one compiled pass; _solve_region walks again
-            rim = np.empty(ns, dtype=bool)
-            deg = np.empty(ns)
-            fast.brush_classify(S, slot, self._vn_ptr, self._vn_nb, self._vn_pair, self._pw, rim, deg)
-            rowid = snb = pwe = None
-        else:
-            ent, lens = csr_ranges(self._vn_ptr, S)
-            rowid = np.repeat(np.arange(ns), lens)
-            nb = self._vn_nb.take(ent, mode="clip")
-            pwe = self._pw.take(self._vn_pair.take(ent, mode="clip"), mode="clip")
-            snb = slot.take(nb, mode="clip")
-            rim = np.bincount(rowid[snb < 0], minlength=ns) > 0
-            rim |= lens == 0
-            deg = np.bincount(rowid, pwe, minlength=ns)
+        kern = accel.kernels("sculpt", self._n)     # one implementation for the region and its system
+        rim, deg, neighbours = kern.classify(S, slot, self._vn_ptr, self._vn_nb, self._vn_pair, self._pw)
         w = self._w[S]
         if self._falloff_fn is not None:
             w = w * apply_falloff(self._falloff_fn, d / self._radius)
@@ -97,7 +84,7 @@ class DabSystem:
             free_i &= ~self._feature[S]
             if self._lam != 0.0:
                 free_c = cand & self._curve[S]
-        return dict(rowid=rowid, snb=snb, pwe=pwe, rim=rim, deg=deg, w=w, mass=mass,
+        return dict(kernels=kern, neighbours=neighbours, rim=rim, deg=deg, w=w, mass=mass,
                     free_i=free_i, free_b=free_b, free_c=free_c)
 
     def _compute(self, c: np.ndarray) -> Dab:
@@ -138,10 +125,9 @@ class DabSystem:
             loc[R] = np.arange(k)
             cdiag = info["mass"][R] / (abs(lam) * info["w"][R])
             U = S[R]
-            if info["rowid"] is None:   # compiled assembly (see _classify)
-                ri, ci, vi, rhs, VU = self._assemble_compiled(S, R, loc, cdiag, Rd, Xd)
-            else:
-                ri, ci, vi, rhs, VU = self._assemble_numpy(S, R, loc, cdiag, Rd, Xd, info)
+            ri, ci, vi, rhs, VU = info["kernels"].assemble(S, R, loc, self._slot, self._vn_ptr, self._vn_nb,
+                                                           self._vn_pair, self._pw, V, cdiag, Rd, Xd,
+                                                           info["neighbours"])
             Xi, solver_used, bw = self._local_solver.solve(k, ri, ci, vi, cdiag + info["deg"][R], rhs,
                                                            notes=self._notes)
             bad = ~np.isfinite(Xi).all(axis=1)
@@ -170,57 +156,6 @@ class DabSystem:
             idx, new, old = (np.concatenate(p) for p in (idx_parts, new_parts, old_parts))
         return Dab(c, self._radius, self._perm[idx], new, old, rim=self._perm[rim], n_inside=ns,
                    solver=solver_used, bandwidth=bw, notes=self._notes, _internal=idx)
-
-    def _assemble_compiled(self, S, R, loc, cdiag, Rb, Xb):
-        """The interior system of a dab in one compiled pass (``brush_assemble``):
-        off-diagonal entries (ri, ci, vi), grouped by row, the right-hand side and the positions."""
-        ns, k = S.size, R.size
-        U = S[R]
-        bl = np.full(ns, -1, dtype=np.int64)
-        if Rb.size:
-            bl[Rb] = np.arange(Rb.size)
-        nent = int(self._vn_ptr.take(U + 1, mode="clip").sum() - self._vn_ptr.take(U, mode="clip").sum())
-        ri = np.empty(nent, np.int64)
-        ci = np.empty(nent, np.int64)
-        vi = np.empty(nent)
-        rhs = np.empty((k, 3))
-        VU = np.empty((k, 3))
-        m = accel.compiled("sculpt", self._n, min_size=0).brush_assemble(
-            S, R, loc, self._slot, self._vn_ptr, self._vn_nb, self._vn_pair, self._pw, self._V, cdiag, bl,
-            np.ascontiguousarray(Xb, dtype=np.float64), ri, ci, vi, rhs, VU)
-        return ri[:m], ci[:m], vi[:m], rhs, VU
-
-    def _assemble_numpy(self, S, R, loc, cdiag, Rb, Xb, info):
-        """The same system as :meth:`_assemble_compiled`, from the neighbour lists of ``_classify``."""
-        V = self._V
-        ns, k = S.size, R.size
-        rowid, snb, pwe = info["rowid"], info["snb"], info["pwe"]
-        lr = loc.take(rowid, mode="clip")
-        sel = np.flatnonzero(lr >= 0)
-        r_loc = lr.take(sel, mode="clip")
-        nbr = snb.take(sel, mode="clip")      # neighbours of free rows are all inside
-        c_loc = loc.take(nbr, mode="clip")
-        w_e = pwe.take(sel, mode="clip")
-        inm = c_loc >= 0
-        VU = V.take(S[R], axis=0, mode="clip")
-        rhs = cdiag[:, None] * VU
-        cp = np.flatnonzero(~inm)
-        if cp.size:
-            rows_c = r_loc[cp]
-            Xn = V.take(S[nbr[cp]], axis=0, mode="clip")
-            if Rb.size:
-                # neighbours solved on the boundary enter with their new (pre-sign) value
-                bl = np.full(ns, -1, dtype=np.int64)
-                bl[Rb] = np.arange(Rb.size)
-                j = bl[nbr[cp]]
-                hit = j >= 0
-                if hit.any():
-                    Xn[hit] = Xb[j[hit]]
-            wc = w_e[cp]
-            for q in range(3):
-                rhs[:, q] += np.bincount(rows_c, wc * Xn[:, q], minlength=k)
-        m = np.flatnonzero(inm)
-        return r_loc.take(m, mode="clip"), c_loc.take(m, mode="clip"), -w_e.take(m, mode="clip"), rhs, VU
 
     def _solve_umbrella(self, S: np.ndarray, info: dict, which: str, lam: float, ptr: np.ndarray, nbs: np.ndarray,
                         Rd: np.ndarray, Xd: np.ndarray):

@@ -1,12 +1,14 @@
-"""The brushes' spatial index: a uniform grid over vertex positions (compiled query)."""
+"""The brushes' spatial indexes: a uniform grid over vertex positions (its query compiled), SciPy's k-d tree.
+
+Both answer ``query(V, far, c, R, r)`` and ``fits(R)``; the sculpt kernel family builds one
+(``spatial_index``).
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-from .. import accel
-
-__all__ = ["sq_norms", "CellGrid"]
+__all__ = ["sq_norms", "CellGrid", "KDIndex", "within"]
 
 
 def sq_norms(D: np.ndarray) -> np.ndarray:
@@ -16,7 +18,8 @@ def sq_norms(D: np.ndarray) -> np.ndarray:
 
 
 class CellGrid:
-    """Uniform grid of cell size ``h`` over fixed positions (the compiled spatial index).
+    """Uniform grid of cell size ``h`` over fixed positions (the spatial index of the compiled brush kernels,
+    which query it: ``shapeflow.sculpt.compiled.CompiledGrid``).
 
     Vertices are grouped by cell (sorted cell keys, CSR); a query visits the
     cells that overlap the query sphere's bounding box.  Answers the same
@@ -41,11 +44,40 @@ class CellGrid:
         self.order = np.argsort(key, kind="stable")
         self.keys, first = np.unique(key[self.order], return_index=True)
         self.starts = np.append(first, n).astype(np.int64)
-        self._out = np.empty(n, np.int64)
-        self._dist = np.empty(n)
+        self.out = np.empty(n, np.int64)      # a query's buffers: nothing mesh-sized per dab
+        self.dist = np.empty(n)
+
+    def fits(self, R: float) -> bool:
+        """Whether queries of radius ``R`` stay within a few cells (else the brush builds a new grid)."""
+        return R <= 4.0 * self.h
+
+
+class KDIndex:
+    """SciPy's k-d tree over fixed positions, with the query of :class:`CellGrid` (the spatial index
+    of the NumPy/SciPy brush kernels)."""
+
+    def __init__(self, P: np.ndarray):
+        from scipy.spatial import cKDTree
+
+        self.tree = cKDTree(P)
+
+    def fits(self, R: float) -> bool:
+        """Any radius suits a k-d tree."""
+        return True
 
     def query(self, V: np.ndarray, far: np.ndarray, c: np.ndarray, R: float, r: float):
-        fast = accel.compiled("sculpt", V.shape[0], min_size=0)
-        m = fast.grid_query(self.keys, self.starts, self.order, self.dims, self.lo, self.h, V, far,
-                         float(c[0]), float(c[1]), float(c[2]), float(R), float(r), self._out, self._dist)
-        return self._out[:m].copy(), self._dist[:m].copy()
+        """The vertices not flagged in ``far`` within ``r`` of ``c`` at the positions ``V`` (which differ
+        from the indexed ones by at most R − r for them), and their distances."""
+        found = self.tree.query_ball_point(c, R, return_sorted=False)
+        cand = np.fromiter(found, dtype=np.int64, count=len(found))
+        return within(V, cand[~far[cand]], c, r)
+
+
+def within(V: np.ndarray, cand: np.ndarray, c: np.ndarray, r: float):
+    """The candidates within ``r`` of ``c`` at the positions ``V``, and their distances."""
+    if cand.size == 0:
+        return cand, np.zeros(0)
+    diff = V.take(cand, axis=0, mode="clip") - c     # (row take: ~4x faster than V[cand])
+    d2 = sq_norms(diff)
+    keep = d2 <= r * r
+    return cand[keep], np.sqrt(d2[keep])

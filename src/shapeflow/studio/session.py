@@ -232,7 +232,7 @@ class StudioSession:
     def set_weights(self, weights) -> None:
         """Replace every weight (one undo step), e.g. by weights read from a file: one number per
         vertex in [0, 1]."""
-        from ..flow.options import resolve_weights
+        from ..mesh.weights import resolve_weights
 
         if weights is None:
             raise ParameterError("weights must be one number per vertex in [0, 1], got None")

@@ -21,14 +21,14 @@ import scipy.sparse as sp
 
 from .. import accel
 from ..errors import ParameterError
-from ..geometry.cotangent import corner_cotangents, triangle_cotangents
+from ..geometry.cotangent import triangle_cotangents
 from ..geometry.measures import pow2_exponent
 from ..mesh import Mesh
 from ..mesh.convert import as_mesh
 from .pattern import check_scheme, operator_pattern
 
 __all__ = ["THRESHOLDS", "REL_EDGE_TOL", "REL_SHAPE_TOL", "BLENDER_MIN", "FLT_EPSILON", "CotanWeights",
-           "assemble", "assemble_corners_numpy", "cotan_weights"]
+           "assemble", "cotan_weights"]
 
 
 THRESHOLDS = ("relative", "blender")
@@ -84,39 +84,6 @@ class CotanWeights:
         yield self.ring_area
 
 
-def assemble_corners_numpy(V, pattern, edges, P, n, thresholds):
-    """The corner-triangle part of ``assemble`` (reference for ``kernels.assemble_corners``)."""
-    fi = pattern.fi
-    cot_p, cot_c, cot_n, dbl, l_prev, l_next, l_skip = corner_cotangents(V, fi, pattern.nxt, pattern.prv)
-    locked = np.zeros(n, dtype=bool)
-    # edge lengths from the corners' half-edges (every edge has at least one corner)
-    elen2 = np.empty(edges.shape[0])
-    elen2[pattern.corner_edge] = l_next
-    if thresholds == "relative":
-        h = float(np.sqrt(elen2).mean()) if elen2.size else 0.0
-        short = elen2 <= (REL_EDGE_TOL * h) ** 2
-        bad = dbl <= REL_SHAPE_TOL * np.maximum(np.maximum(l_prev, l_next), l_skip)
-        locked[edges[short].reshape(-1)] = True
-        bc = np.flatnonzero(bad)
-        locked[fi[bc]] = True
-        locked[fi[pattern.prv[bc]]] = True
-        locked[fi[pattern.nxt[bc]]] = True
-    else:  # Blender's absolute rules
-        locked[edges[elen2 < BLENDER_MIN ** 2].reshape(-1)] = True
-        small = 0.5 * dbl < BLENDER_MIN
-        locked[fi[small]] = True                      # the corner vertex of a corner triangle
-        bad = ~(dbl > FLT_EPSILON)
-    w = np.where(bad, 0.0, pattern.corner_w)
-    # edge of corner k (curr -> next) gets cot at prev of triangle k and cot at next of triangle next(k)
-    wc_n = w * cot_n
-    h_edge = w * cot_p + wc_n[pattern.nxt]
-    pw = np.bincount(pattern.corner_edge, h_edge, minlength=P) + np.bincount(pattern.skip_pair, w * cot_c, minlength=P)
-    # ring area: each corner triangle's (weighted) area to its three vertices
-    ca = 0.5 * dbl * pattern.corner_aw
-    ring = np.bincount(fi, ca + ca[pattern.nxt] + ca[pattern.prv], minlength=n)
-    return pw, ring, locked, int(bad.sum())
-
-
 def assemble(mesh, scheme: str, thresholds: str, vertices: np.ndarray | None = None):
     """Pair weights, degrees, ring areas, locked mask, #degenerate (no matrix)."""
     if thresholds not in THRESHOLDS:
@@ -128,17 +95,10 @@ def assemble(mesh, scheme: str, thresholds: str, vertices: np.ndarray | None = N
     if k:
         V = np.ldexp(V, -k)
     n = mesh.n_vertices
-    edges = mesh.topology.edges
     xcot, xdbl, xsq = triangle_cotangents(V, pattern.extra_tris)
     P = pattern.pairs.shape[0]
-    fast = accel.compiled("operators", n)
-    if fast is not None:
-        pw, ring, locked, n_bad = fast.assemble_corners(
-            np.ascontiguousarray(V, dtype=np.float64), pattern.fi, mesh.topology.face_offsets, pattern.corner_edge,
-            pattern.skip_pair, pattern.scheme == "tqlbo", edges, P, n, thresholds == "blender",
-            REL_EDGE_TOL, REL_SHAPE_TOL, BLENDER_MIN, FLT_EPSILON)
-    else:
-        pw, ring, locked, n_bad = assemble_corners_numpy(V, pattern, edges, P, n, thresholds)
+    kern = accel.kernels("operators", n)
+    pw, ring, locked, n_bad = kern.assemble_corners(V, pattern, mesh.topology, thresholds)
     # the tqlbo fan triangles of n-gons (few)
     if thresholds == "relative":
         xbad = xdbl <= REL_SHAPE_TOL * xsq.max(axis=1) if xdbl.size else np.zeros(0, bool)
@@ -150,10 +110,7 @@ def assemble(mesh, scheme: str, thresholds: str, vertices: np.ndarray | None = N
     if pattern.extra_tris.size:
         xv = (xcot * np.where(xbad, 0.0, pattern.extra_w)[:, None]).reshape(-1)
         pw += np.bincount(pattern.extra_pair.reshape(-1), xv, minlength=P)
-    if fast is not None:
-        deg = fast.pair_degree(pattern.pairs, pw, n)
-    else:
-        deg = np.bincount(pattern.pairs[:, 0], pw, minlength=n) + np.bincount(pattern.pairs[:, 1], pw, minlength=n)
+    deg = kern.pair_degree(pattern.pairs, pw, n)
     if pattern.extra_tris.size:
         xa = 0.5 * xdbl * pattern.extra_w
         ring += np.bincount(pattern.extra_tris.reshape(-1), np.repeat(xa, 3), minlength=n)
