@@ -126,7 +126,7 @@ class BiCGSeed(NumpySeed):
     residuals, the states where later blocks start); later blocks are replayed as CG's (the residual
     and direction recurrences r −= α A p, p = r + β p are the same, with the recorded α, β)."""
 
-    def __init__(self, A, B: np.ndarray, seed: float, cap: int, fast=None, *, AT=None):
+    def __init__(self, A, B: np.ndarray, seed: float, cap: int, *, AT=None):
         super().__init__(A, B, seed, cap)
         self.AT = AT
 

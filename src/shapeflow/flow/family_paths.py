@@ -133,8 +133,6 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
         report.notes.append(plan.note)
     solved = plan.member_shift >= 0
     if (interior_sys is not None or curve_sys is not None) and solved.any():
-        S = plan.scale
-        deltas = plan.sigmas - plan.sigmas[0]
         member_of_shift = [np.flatnonzero(plan.member_shift == i) for i in range(plan.sigmas.size)]
         counted = np.zeros(plan.sigmas.size, bool)
 
@@ -143,37 +141,9 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
             counted[new] = True
             tick(int(sum(member_of_shift[i].size for i in np.flatnonzero(new))))
 
-        if curve_sys is not None:     # curves and surface: one non-symmetric shifted system (family_features)
-            R0, As, AsT, cols = coupled_seed_system(interior_sys, curve_sys, S, V, X, ax)
-            res = multishift_bicg(As, AsT, R0, deltas, rtol=flow_solver.rtol, maxiter=plan.maxiter,
-                                  progress=on_progress)
-            inv = None
-        else:
-            R0, As, cols = seed_system(interior_sys, S, V, X, ax)
-            As, R0, S, inv = in_locality_order(operator, As, R0, S)
-        sign = np.where(lams >= 0, 1.0, -1.0)
         finite = np.ones(plan.sigmas.size, bool)
-
-        every = list(cols) == [0, 1, 2]
-
-        def add(shifts, rows):
-            """Members += ± their displacements Δ = C_1^{-1/2} Y (rows (shifts, columns, n), scaled already)."""
-            for i, d in zip(shifts, rows):
-                finite[i] = bool(np.isfinite(d).all())
-                for m in member_of_shift[i]:
-                    for t, j in ((slice(None), slice(None)),) if every else enumerate(cols):
-                        if sign[m] > 0:
-                            out[m, :, j] += d[t].T
-                        else:
-                            out[m, :, j] -= d[t].T
-
-        post = (S, inv)                                     # 0 off the free rows; back from the locality order
-        if curve_sys is None:
-            res = multishift_cg(As, R0, deltas, rtol=flow_solver.rtol, maxiter=plan.maxiter,
-                                block_bytes=block_bytes(plan.sigmas.size, n), progress=on_progress, emit=add,
-                                post=post)
-        else:
-            add(np.arange(plan.sigmas.size), (res.X * S).transpose(1, 0, 2))
+        res = run_shared(flow_solver, operator, plan, X, ax,
+                         member_sink(out, lams, ax, member_of_shift, finite), on_progress)
         report.krylov_iterations = res.krylov_iterations
         ok = res.converged.all(axis=1) & finite
         its = np.where(res.converged, res.iterations, res.krylov_iterations).max(axis=1)
@@ -190,6 +160,42 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
         rescale_members(flow_solver, out, lams, ax, report,
                         moved=lambda m: (lams[m] != 0.0 and has_interior) or has_boundary)
     return out
+
+
+def member_sink(out: np.ndarray, lams: np.ndarray, ax: np.ndarray, member_of_shift: list, finite: np.ndarray):
+    """The ``emit`` of the shared solve: members += ± their displacements Δ = C_1^{-1/2} Y (``rows[t, q]``
+    column t of shift ``shifts[q]``, scaled already); ``finite[i]`` says whether shift i's were."""
+    cols = np.flatnonzero(ax)
+    plus = lams >= 0
+
+    def add(shifts, rows):
+        for q, i in enumerate(shifts):
+            finite[i] = bool(np.isfinite(rows[:, q]).all())
+            for m in member_of_shift[i]:
+                for t, j in enumerate(cols):
+                    if plus[m]:
+                        out[m, :, j] += rows[t, q]
+                    else:
+                        out[m, :, j] -= rows[t, q]
+    return add
+
+
+def run_shared(flow_solver: FlowSolver, operator, plan: SharedPlan, X: np.ndarray, ax: np.ndarray, add, progress):
+    """The multi-shift solve of the plan's shifts, its members handed to ``add`` (:func:`member_sink`):
+    BiCG with feature curves (:mod:`~shapeflow.flow.family_features`), else CG on the system in the
+    operator's locality order."""
+    interior_sys, curve_sys, S, V = plan.interior_sys, plan.curve_sys, plan.scale, flow_solver.mesh.vertices
+    deltas = plan.sigmas - plan.sigmas[0]
+    if curve_sys is not None:     # curves and surface: one non-symmetric shifted system
+        R0, As, AsT, _ = coupled_seed_system(interior_sys, curve_sys, S, V, X, ax)
+        res = multishift_bicg(As, AsT, R0, deltas, rtol=flow_solver.rtol, maxiter=plan.maxiter, progress=progress)
+        add(np.arange(plan.sigmas.size), res.X * S)
+        return res
+    R0, As, _ = seed_system(interior_sys, S, V, X, ax)
+    As, R0, S, inv = in_locality_order(operator, As, R0, S)
+    return multishift_cg(As, R0, deltas, rtol=flow_solver.rtol, maxiter=plan.maxiter,
+                         block_bytes=block_bytes(plan.sigmas.size, S.size), progress=progress, emit=add,
+                         post=(S, inv))      # 0 off the free rows; back from the locality order
 
 
 def block_bytes(k: int, n: int) -> int:

@@ -1,8 +1,9 @@
 """Compiled multi-shift CG: the seed's iterations and the shifted recurrences of
-:func:`shapeflow.linalg.multishift.multishift_cg` in one loop.
+:func:`shapeflow.linalg.multishift.multishift_cg` in one loop (:class:`CompiledSeed`, which
+:meth:`shapeflow.linalg.compiled.LinalgNumba.multishift_seed` hands out).
 
-The NumPy twin is the loop of :func:`~shapeflow.linalg.multishift.multishift_cg` itself (same
-formulas in the same order; the sums differ in rounding only); ``tests/linalg/test_multishift.py``
+The NumPy twin is :class:`~shapeflow.linalg.multishift.NumpySeed`, the linalg family's reference
+(same formulas in the same order; the sums differ in rounding only); ``tests/linalg/test_multishift.py``
 compares the two.  Up to three columns, stored (n, 3) as the flow's CG does (an unused column is
 zero and never iterates).  An iteration is three passes over the rows (the product with its dots,
 the residual update with its dots and its copy into the block, the direction update) and
@@ -15,10 +16,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-#: what :func:`run` returns (the codes of :mod:`~shapeflow.linalg.multishift`): every (shift, column)
-#: finished, a block boundary passed (save the state), a shift finished in every column (report
-#: progress), the iteration cap, the records are full (grow them)
-DONE, CHECKPOINT, PROGRESS, CAPPED, GROW = 0, 1, 2, 3, 4
+# what :func:`run` returns: every (shift, column) finished, a block boundary passed (save the
+# state), a shift finished in every column (report progress), the iteration cap, the records are
+# full (grow them)
+from .multishift import CAPPED, CHECKPOINT, DONE, GROW, PROGRESS, NumpySeed, Records, ShiftedSystems
+
+__all__ = ["CompiledSeed", "run", "replay", "DONE", "CAPPED"]
 
 
 @njit(cache=True)
@@ -41,18 +44,15 @@ def _product(indptr, indices, data, seed, P, AP):
             a1 += v * P[j, 1]
             a2 += v * P[j, 2]
         q0 = q1
-        p0 = P[i, 0]
-        p1 = P[i, 1]
-        p2 = P[i, 2]
-        a0 += seed * p0
-        a1 += seed * p1
-        a2 += seed * p2
+        a0 += seed * P[i, 0]
+        a1 += seed * P[i, 1]
+        a2 += seed * P[i, 2]
         AP[i, 0] = a0
         AP[i, 1] = a1
         AP[i, 2] = a2
-        s0 += p0 * a0
-        s1 += p1 * a1
-        s2 += p2 * a2
+        s0 += P[i, 0] * a0
+        s1 += P[i, 1] * a1
+        s2 += P[i, 2] * a2
     return s0, s1, s2
 
 
@@ -204,3 +204,57 @@ def replay(indptr, indices, data, seed, P, AP, R, Rb, sa, sb, t0, t1):
         _product(indptr, indices, data, seed, P, AP)
         _residual(R, AP, sa[t], Rb, t - t0, c)
         _direction(P, R, sb[t])
+
+
+class CompiledSeed(NumpySeed):
+    """The seed's CG of :class:`~shapeflow.linalg.multishift.NumpySeed` compiled ((n, 3) vectors,
+    unused columns 0): :func:`run` and :func:`replay`."""
+
+    def __init__(self, A, B: np.ndarray, seed: float, cap: int):
+        self.A, self.seed, self.cap = A, seed, cap
+        self.c, self.n = B.shape
+        self.indptr = A.indptr.astype(np.int32, copy=False)
+        self.indices = A.indices.astype(np.int32, copy=False)
+        self.data = np.ascontiguousarray(A.data, dtype=np.float64)
+        self.Rb = np.empty((self.c, cap, self.n))
+        self.Rb[:, 0] = B
+        self.P = np.zeros((self.n, 3))
+        self.P[:, :self.c] = B.T
+        self.R = self.P.copy()
+        self.AP = np.empty((self.n, 3))
+        self.saved = {}
+        self.replayed = 0
+        self.rec = None
+
+    def release(self) -> None:
+        self.Rb = self.P = self.R = self.AP = None
+        self.saved = {}
+
+    def first_pass(self, rec: Records, sh: ShiftedSystems, report) -> int:
+        c = self.c
+        self.rec = rec
+        delta, rho, tol2, active, iterations = sh.delta, sh.rho, sh.tol2, sh.active, sh.iterations
+        k = delta.size
+        zeta, zeta_prev = np.ones((k, c)), np.ones((k, c))
+        rho3, tol3 = np.zeros(3), np.zeros(3)
+        rho3[:c], tol3[:c] = rho, tol2
+        alpha_prev, beta_prev = np.ones(3), np.zeros(3)
+        state = np.zeros(1, np.int64)
+        done = report(None)
+        while True:
+            st = run(self.indptr, self.indices, self.data, self.seed, self.P, self.AP, self.R, self.Rb,
+                               delta, zeta, zeta_prev, rho3, alpha_prev, beta_prev, tol3, active, sh.live, iterations,
+                               rec.ra, rec.rb, rec.rz, rec.sa, rec.sb, rec.srho, state, sh.maxiter)
+            done = report(done)
+            if st == GROW:
+                rec.grow()
+            elif st == CHECKPOINT:
+                self.saved[int(state[0]) // self.cap] = (self.R.copy(), self.P.copy())
+            elif st != PROGRESS:
+                return int(state[0])
+
+    def replay(self, b: int, t0: int, t1: int) -> None:
+        self.R, self.P = self.saved.pop(b)
+        replay(self.indptr, self.indices, self.data, self.seed, self.P, self.AP, self.R, self.Rb,
+                         self.rec.sa, self.rec.sb, t0, t1)
+        self.replayed += t1 - t0 - 1

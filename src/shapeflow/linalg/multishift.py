@@ -7,7 +7,7 @@ from typing import Callable
 
 import numpy as np
 import scipy.linalg
-import scipy.sparse as sp
+from scipy.linalg.blas import dgemm
 
 from .. import accel
 from ..errors import ParameterError
@@ -80,7 +80,7 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
     progress : called with the (k,) bool array "shift converged in every
         column" whenever it changes.
     emit : when given, the iterates are not collected in ``X`` (which is then None) but
-        handed over as they are formed: ``emit(shifts, rows)`` with ``rows[q, j]`` column ``j``
+        handed over as they are formed: ``emit(shifts, rows)`` with ``rows[j, q]`` column ``j``
         of the solution for shift ``shifts[q]`` (a buffer reused after the call returns).
     post : ``(scale, take)``, either may be None: every solution column x is returned (or
         emitted) as ``(scale * x)[take]`` (applied to the low-rank factor, before the rows are formed).
@@ -96,16 +96,16 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
     product and vector updates plus O(k) scalars; the seed residuals are
     stored in a block and folded into the k iterates by GEMMs at the end.
     Columns are independent CG runs (their own α, β), as in the repository's
-    CG.  With the compiled kernels (``accel.compiled("linalg", n)``, a CSR
-    matrix, up to three columns) the seed's iterations run in
-    :mod:`~shapeflow.linalg.compiled_shift`, the same formulas in the same order.
+    CG.  The seed's iterations are the linalg kernel family's
+    (``accel.kernels("linalg", n).multishift_seed``): :class:`NumpySeed`, or compiled
+    (:mod:`~shapeflow.linalg.compiled_shift`, a CSR matrix, up to three columns) with the same
+    formulas in the same order.
+
     """
     sh = ShiftedSystems(B, shifts, rtol, maxiter)
     if sh.result is not None:
         return sh.result
-    fast = compiled_kernels(A, sh.c, sh.n)
-    cap = sh.block_slots(block_bytes)
-    seed_cg = (CompiledSeed if fast is not None else NumpySeed)(A, sh.B, sh.seed, cap, fast)
+    seed_cg = accel.kernels("linalg", sh.n).multishift_seed(A, sh.B, sh.seed, sh.block_slots(block_bytes))
     return sh.solve(seed_cg, rtol if low_rank else None, progress, emit, post)
 
 
@@ -153,21 +153,21 @@ class ShiftedSystems:
             X = np.empty((self.c, self.k, self.n))
 
             def emit(shifts, rows):
-                X[:, shifts] = rows.transpose(1, 0, 2)
+                X[:, shifts] = rows
         flushes, ranks = fold(seed_cg, rec, m, stop, self.inv, rtol, emit, post)
         return MultiShiftResult(X, self.iterations[self.inv], ~self.active[self.inv], m, flushes,
                                 seed_cg.replayed, ranks)
 
 
 #: shifts formed at a time when the iterates are handed out row by row (``emit``)
-EMIT_ROWS = 8
+EMIT_ROWS = 16
 
 
 def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol: float | None, emit,
          post=None):
     """The iterates x_s = Σ_t C[s, t] r_t from the blocks of seed residuals (the first one stored, the
     others replayed), transformed by ``post`` and handed to ``emit(shifts, rows)`` (shifts in the
-    caller's order, ``rows`` (shifts, c, n) a reused buffer); returns (blocks, ranks).
+    caller's order, ``rows`` (c, shifts, n) a reused buffer); returns (blocks, ranks).
 
     Per column, with ``rtol``, through :func:`low_rank_factors` of the coefficients of the recurrences
     run to the seed's last iteration, where that saves flops; otherwise one GEMM per block with the
@@ -175,7 +175,6 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
     """
     c, k = stop.shape
     n, cap = seed_cg.n, seed_cg.cap
-    order = np.argsort(inv)                             # caller's shift -> row of the sorted coefficients
     factors = [None] * c
     if rtol is not None and 20 * min(k, m) < n:
         C = member_coefficients(rec.ra, rec.rb, rec.rz, m)
@@ -195,14 +194,13 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
         Rv = seed_cg.Rb[:, :t1 - t0]
         for j in range(c):
             if factors[j] is not None:
-                W[j] += factors[j][1][t0:t1].T @ Rv[j]
-            elif b == 0:
-                np.matmul(Cp[j][:, t0:t1], Rv[j], out=X[full.index(j)])
+                gemm(factors[j][1][t0:t1].T, Rv[j], W[j], True)
             else:
-                X[full.index(j)] += Cp[j][:, t0:t1] @ Rv[j]
+                gemm(Cp[j][:, t0:t1], Rv[j], X[full.index(j)], b > 0)
     seed_cg.release()
     if not nblocks and X is not None:
         X[:] = 0.0
+    lefts = [None if f is None else f[0][inv] for f in factors]     # rows in the caller's order
     scale, take = post if post is not None else (None, None)
     for j in range(c):
         if factors[j] is not None:
@@ -211,21 +209,36 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
             if take is not None:
                 W[j] = W[j][:, take]
     chunk = min(EMIT_ROWS, k)
-    buf = np.empty((chunk, c, n))
-    lefts = [None if f is None else f[0][order] for f in factors]   # rows in the caller's order
+    buf = np.empty((c, chunk, n))                       # buf[j]: contiguous rows, one GEMM's output
     for s0 in range(0, k, chunk):
-        rows = buf[:min(chunk, k - s0)]
+        q = min(chunk, k - s0)
         for j in range(c):
             if factors[j] is not None:
-                np.matmul(lefts[j][s0:s0 + rows.shape[0]], W[j], out=rows[:, j])
+                gemm(lefts[j][s0:s0 + q], W[j], buf[j, :q])
                 continue
-            rows[:, j] = X[full.index(j), s0:s0 + rows.shape[0]]
+            rows = X[full.index(j), s0:s0 + q]
             if scale is not None:
-                rows[:, j] *= scale
-            if take is not None:
-                rows[:, j] = rows[:, j][:, take]
-        emit(np.arange(s0, s0 + rows.shape[0]), rows)
+                rows = rows * scale
+            buf[j, :q] = rows if take is None else rows[:, take]
+        emit(np.arange(s0, s0 + q), buf[:, :q])
     return nblocks, tuple(0 if f is None else f[0].shape[1] for f in factors)
+
+
+def gemm(A: np.ndarray, B: np.ndarray, out: np.ndarray, accumulate: bool = False) -> None:
+    """``out = A @ B`` (``out += A @ B`` with ``accumulate``) for a C-contiguous ``out`` and ``B``, by SciPy's
+    BLAS on one thread (:class:`~shapeflow.linalg.blas.SingleThreadBLAS`): OpenBLAS's threads keep
+    spinning after a call, which on two shared cores slowed the seed's compiled iterations that
+    follow by up to 2× (and the GEMMs themselves are short)."""
+    if out.size == 0:
+        return
+    if A.shape[1] == 0:                                 # (BLAS refuses empty operands)
+        if not accumulate:
+            out[:] = 0.0
+        return
+    with SingleThreadBLAS():
+        r = dgemm(1.0, B.T, A.T, beta=1.0 if accumulate else 0.0, c=out.T, overwrite_c=True)
+    if not np.shares_memory(r, out):                    # (a copy where the layout asked for one)
+        out[:] = r.T
 
 
 def low_rank_factors(C: np.ndarray, rho: np.ndarray, tol: float):
@@ -304,7 +317,7 @@ class NumpySeed:
     """The seed's CG in NumPy (component-major (c, n) vectors): the first pass (records, the first
     block of residuals, the states where later blocks start) and the replay of a later block."""
 
-    def __init__(self, A, B: np.ndarray, seed: float, cap: int, fast=None):
+    def __init__(self, A, B: np.ndarray, seed: float, cap: int):
         self.A, self.seed, self.cap = A, seed, cap
         self.c, self.n = B.shape
         self.Rb = np.empty((self.c, cap, self.n))       # the block's seed residuals
@@ -387,70 +400,6 @@ class NumpySeed:
             self.p *= self.rec.sb[t, :self.c, None]
             self.p += self.r
         self.replayed += t1 - t0 - 1
-
-
-class CompiledSeed(NumpySeed):
-    """The seed's CG in :mod:`~shapeflow.linalg.compiled_shift` ((n, 3) vectors, unused columns 0)."""
-
-    def __init__(self, A, B: np.ndarray, seed: float, cap: int, fast=None):
-        self.fast = fast
-        self.A, self.seed, self.cap = A, seed, cap
-        self.c, self.n = B.shape
-        self.indptr = A.indptr.astype(np.int32, copy=False)
-        self.indices = A.indices.astype(np.int32, copy=False)
-        self.data = np.ascontiguousarray(A.data, dtype=np.float64)
-        self.Rb = np.empty((self.c, cap, self.n))
-        self.Rb[:, 0] = B
-        self.P = np.zeros((self.n, 3))
-        self.P[:, :self.c] = B.T
-        self.R = self.P.copy()
-        self.AP = np.empty((self.n, 3))
-        self.saved = {}
-        self.replayed = 0
-        self.rec = None
-
-    def release(self) -> None:
-        self.Rb = self.P = self.R = self.AP = None
-        self.saved = {}
-
-    def first_pass(self, rec: Records, sh: ShiftedSystems, report) -> int:
-        c = self.c
-        self.rec = rec
-        delta, rho, tol2, active, iterations = sh.delta, sh.rho, sh.tol2, sh.active, sh.iterations
-        k = delta.size
-        zeta, zeta_prev = np.ones((k, c)), np.ones((k, c))
-        rho3, tol3 = np.zeros(3), np.zeros(3)
-        rho3[:c], tol3[:c] = rho, tol2
-        alpha_prev, beta_prev = np.ones(3), np.zeros(3)
-        state = np.zeros(1, np.int64)
-        done = report(None)
-        while True:
-            st = self.fast.run(self.indptr, self.indices, self.data, self.seed, self.P, self.AP, self.R, self.Rb,
-                               delta, zeta, zeta_prev, rho3, alpha_prev, beta_prev, tol3, active, sh.live, iterations,
-                               rec.ra, rec.rb, rec.rz, rec.sa, rec.sb, rec.srho, state, sh.maxiter)
-            done = report(done)
-            if st == GROW:
-                rec.grow()
-            elif st == CHECKPOINT:
-                self.saved[int(state[0]) // self.cap] = (self.R.copy(), self.P.copy())
-            elif st != PROGRESS:
-                return int(state[0])
-
-    def replay(self, b: int, t0: int, t1: int) -> None:
-        self.R, self.P = self.saved.pop(b)
-        self.fast.replay(self.indptr, self.indices, self.data, self.seed, self.P, self.AP, self.R, self.Rb,
-                         self.rec.sa, self.rec.sb, t0, t1)
-        self.replayed += t1 - t0 - 1
-
-
-def compiled_kernels(A, c: int, n: int):
-    """:mod:`~shapeflow.linalg.compiled_shift` where the compiled kernels run a problem of this size on a
-    CSR matrix with up to three columns, else None (the NumPy loop)."""
-    if c > 3 or not sp.issparse(A) or A.format != "csr" or accel.compiled("linalg", n) is None:
-        return None
-    from . import compiled_shift
-
-    return compiled_shift
 
 
 def report_progress(progress, active: np.ndarray, inv: np.ndarray, before: np.ndarray | None) -> np.ndarray:
