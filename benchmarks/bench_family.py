@@ -3,6 +3,7 @@
     python benchmarks/bench_family.py                  # family, 48 x flow(), Blender (sampled)
     python benchmarks/bench_family.py --blender-all    # time all 48 Blender evaluations (~4 s each)
     python benchmarks/bench_family.py --quick          # family only
+    python benchmarks/bench_family.py --ratio          # family / flow() at its largest λ, Suzanne x3 (issue 35)
 
 Mesh: spot_quad (shared/meshes) Catmull-Clark subdivided twice with
 ``shapeflow.subdivide``: 46,850 vertices, all quads (the paper's ~40K model;
@@ -18,6 +19,16 @@ by default ``--blender-samples`` evenly spaced members are timed and the total
 is extrapolated from their mean -- the output says so).  The load average is
 printed before and after: the reference machine has 2 cores shared with other
 jobs.
+
+``--ratio`` (issue 35): the same 48 members on Suzanne (shared/meshes/suzanne_hybrid_open.obj beside
+the checkout or under ``SHAPEFLOW_SHARED``,
+Catmull-Clark ``--suzanne-levels`` times: 31,658 vertices at 3) against one ``flow()`` at the
+family's largest |λ| (λ = -235), warm mesh, in interleaved rounds (family and flow alternate,
+their order swapped every round) under four settings in turn each round: kernels as by default
+(``auto``: at 31K vertices NumPy/SciPy, where flow() factorises) and forced (``force``: the
+compiled seed CG against flow()'s Gauss-Seidel CG), each with the default threads and with one.
+Printed per setting: the medians of the family, of flow() and of the per-round ratios, and the
+largest deviation of the family's member from that flow() (x diagonal).
 """
 
 from __future__ import annotations
@@ -70,7 +81,12 @@ def main(argv=None) -> int:
     ap.add_argument("--blender-all", action="store_true", help="time all 48 Blender evaluations")
     ap.add_argument("--no-blender", action="store_true")
     ap.add_argument("--quick", action="store_true", help="family only (no flow() or Blender comparison)")
+    ap.add_argument("--ratio", action="store_true", help="family / flow() at its largest λ on Suzanne (issue 35)")
+    ap.add_argument("--rounds", type=int, default=15, help="interleaved rounds of --ratio")
+    ap.add_argument("--suzanne-levels", type=int, default=3, help="subdivisions of Suzanne for --ratio")
     args = ap.parse_args(argv)
+    if args.ratio:
+        return ratio(args.rounds, args.suzanne_levels)
 
     mesh, origin = load_mesh(args.levels)
     V, S, I = mesh.vertices, mesh.face_sizes, mesh.face_indices
@@ -143,6 +159,57 @@ def main(argv=None) -> int:
     row(f"{k} x Blender Laplacian Smooth", t_blender, f"= {t_blender / t_warm:.0f}x the family (warm); {how}")
     print(f"  {'':46s} per evaluation: median {statistics.median(secs) * 1e3:.0f} ms; "
           f"family(compat='blender') vs Blender: max {dev:.1e} x diagonal (Blender is float32)")
+    print(f"  after: {load()}")
+    return 0
+
+
+def ratio(rounds: int, levels: int) -> int:
+    """Family of 48 against flow() at λ = -235, interleaved rounds under four backend settings."""
+    from shapeflow import accel
+
+    shared = Path(os.environ.get("SHAPEFLOW_SHARED", HERE.parent.parent / "shared"))
+    src = shared / "meshes" / "suzanne_hybrid_open.obj"
+    mesh = sf.load(src)
+    for _ in range(levels):
+        mesh = sf.subdivide(mesh, 1)
+    lams = np.arange(0.0, -240.0, -5.0)
+    lam_max = float(lams[np.argmax(np.abs(lams))])
+    settings = {"kernels auto, threads auto": dict(kernels="auto"),
+                "kernels auto, 1 thread": dict(kernels="auto", threads=1),
+                "kernels force, threads auto": dict(kernels="force"),
+                "kernels force, 1 thread": dict(kernels="force", threads=1)}
+    print(f"{src.stem} subdivided {levels}x: {mesh.n_vertices:,} vertices; {lams.size} members λ = 0 ... "
+          f"{lams[-1]:g} against flow(λ = {lam_max:g}); {rounds} interleaved rounds")
+    print(f"  before: {load()}")
+    times = {name: ([], []) for name in settings}
+    info = {}
+    for name, kw in settings.items():      # warm-up: compiled code, caches of the mesh
+        with accel.use(**kw):
+            shapes, rep = sf.family(mesh, lams, return_report=True)
+            out = sf.flow(mesh, lam_max)
+        dev = float(np.abs(shapes[-1] - out.vertices).max()) / mesh.diagonal
+        info[name] = (rep, out.report, dev)
+    for r in range(rounds):
+        for name, kw in settings.items():
+            tf, tl = times[name]
+            with accel.use(**kw):
+                for which in ((0, 1) if r % 2 == 0 else (1, 0)):
+                    t0 = time.perf_counter()
+                    if which == 0:
+                        sf.family(mesh, lams)
+                        tf.append(time.perf_counter() - t0)
+                    else:
+                        sf.flow(mesh, lam_max)
+                        tl.append(time.perf_counter() - t0)
+    for name in settings:
+        tf, tl = times[name]
+        rep, frep, dev = info[name]
+        ratios = [a / b for a, b in zip(tf, tl)]
+        print(f"  {name:<28s} family {statistics.median(tf) * 1e3:7.1f} ms  flow {statistics.median(tl) * 1e3:7.1f} ms"
+              f"  ratio median {statistics.median(ratios):.2f} (rounds {min(ratios):.2f}-{max(ratios):.2f})")
+        pre = getattr(frep, "preconditioner", "") or ""
+        print(f"  {'':28s} [{rep.solver}, {rep.krylov_iterations} shared iterations; flow: {frep.solver} "
+              f"{pre} {list(frep.cg_iterations)}; member vs flow() {dev:.1e} x diagonal]")
     print(f"  after: {load()}")
     return 0
 

@@ -47,7 +47,8 @@ Rather than two axpy passes per member per iteration (48 members × 3 columns
 block — usually one in all (:func:`multishift_cg`); the per-member
 recurrences only touch coefficients.  Measured on the 46,850-vertex figure-1
 family (``benchmarks/bench_family.py``, 2-core machine under load ~2): the
-48 members in 0.65–0.9 s, about 1.2× the hardest member's flow() alone,
+48 members in 0.65–0.9 s (against the hardest member's flow() alone: docs/performance.md,
+"The family's shared solve"),
 against ~21 s for 48 flow() calls and ~200 s for 48 Blender evaluations.
 
 Paths

@@ -14,8 +14,10 @@ do not feel the surface).  Krylov spaces are invariant under shifts whatever the
 bi-conjugate gradient method (BiCG: residuals and shadow residuals of the Lanczos
 biorthogonalisation) solves all shifts at once exactly as CG-M does for symmetric M: the shifted
 residuals are the seed's times the same scalars ζ_σ (Jegerlehner 1996; Frommer 2003), so
-:func:`~shapeflow.linalg.multishift.shifted_coefficients` and the same block of stored seed
-residuals (:class:`~shapeflow.linalg.multishift.ShiftedBlock`) carry over.  An iteration costs a
+:func:`~shapeflow.linalg.multishift.shifted_coefficients`, the recorded scalars and the members'
+coefficients over the stored seed residuals (:class:`~shapeflow.linalg.multishift.ShiftedSystems`)
+carry over; BiCG's residuals are not orthogonal, so the iterates are formed without the low-rank
+factorisation.  An iteration costs a
 product with M and one with Mᵀ.  Each member stops on its own residual; at the end every member's
 true residual is checked, and a member short of ``rtol`` (BiCG's recurrences may drift, or break
 down) is reported unconverged and solved separately by the caller.
@@ -28,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..linalg.multishift import ShiftedBlock, report_progress, shifted_coefficients
+from ..linalg.multishift import NumpySeed, Records, ShiftedSystems, shifted_coefficients
 
 __all__ = ["coupled_seed_system", "multishift_bicg", "BiCGResult"]
 
@@ -82,18 +84,6 @@ def coupled_seed_system(interior_sys, curve_sys, S: np.ndarray, V: np.ndarray, X
     return R0, Ts, Ts.T.tocsr(), cols_ax
 
 
-def _next_residual(blk: ShiftedBlock, active: np.ndarray, zeta: np.ndarray, k_blk: int) -> int:
-    """Store the new seed residual in the block (folding a full block into the iterates first);
-    returns the number of shifts active at the start of the current block."""
-    ka = int(np.flatnonzero(active.any(axis=1)).max()) + 1
-    if blk.used == blk.cap:
-        blk.flush(k_blk, ka)
-        k_blk = ka
-        blk.restart()
-    blk.append(zeta, ka)
-    return k_blk
-
-
 @dataclass
 class BiCGResult:
     """As :class:`~shapeflow.linalg.multishift.MultiShiftResult`: ``X[j, i]`` column j of shift i."""
@@ -111,70 +101,86 @@ def multishift_bicg(A, AT, B: np.ndarray, shifts, *, rtol: float, maxiter: int, 
     (shift, column) stops when its recurrence residual ``|ζ_s| ‖r‖`` falls below ``rtol ‖b‖``;
     ``converged`` then also requires the true residual ``‖b − (A + s) x‖`` below ``10·rtol ‖b‖``.
     """
-    B = np.ascontiguousarray(np.atleast_2d(np.asarray(B, dtype=np.float64)))
-    c, n = B.shape
-    shifts = np.asarray(shifts, dtype=np.float64).ravel()
-    k = shifts.size
-    order = np.argsort(shifts, kind="stable")
-    inv = np.argsort(order)
-    seed = float(shifts[order][0]) if k else 0.0
-    delta = (shifts[order] - seed)[:, None]
-    nb2 = np.einsum("ij,ij->i", B, B)
-    tol2 = rtol * rtol * nb2
-    active = np.broadcast_to(nb2 > tol2, (k, c)).copy()
-    iterations = np.where(active, -1, 0)
-    if k == 0 or not active.any():
-        return BiCGResult(np.zeros((c, k, n)), iterations[inv], ~active[inv], 0)
-    cap = int(max(8, min(maxiter + 1, (64 * 2 ** 20) // max(1, 8 * c * n))))
-    blk = ShiftedBlock(B, k, cap)
-    p, shadow, p_shadow = B.copy(), B.copy(), B.copy()
-    Ap, Atp = np.zeros_like(B), np.zeros_like(B)
-    rho = np.einsum("ij,ij->i", shadow, B)
-    zeta, zeta_prev = np.ones((k, c)), np.ones((k, c))
-    alpha_prev, beta_prev = np.ones(c), np.zeros(c)
-    done_prev = report_progress(progress, active, inv, None)
-    it, k_blk = 0, k
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
-        while it < maxiter:
-            run = active.any(axis=0)
-            ka = int(np.flatnonzero(active.any(axis=1)).max()) + 1
-            it += 1
-            r = blk.Rb[:, blk.used - 1]
-            for j in np.flatnonzero(run):
-                Ap[j] = A @ p[j] + seed * p[j]
-                Atp[j] = AT @ p_shadow[j] + seed * p_shadow[j]
-            pAp = np.einsum("ij,ij->i", p_shadow, Ap)
-            ok = run & (pAp != 0) & (rho != 0) & np.isfinite(pAp)
-            alpha = np.where(ok, rho / np.where(ok, pAp, 1.0), 0.0)
-            r_new = blk.next_slot()
-            np.subtract(r, Ap * alpha[:, None], out=r_new)
-            shadow -= Atp * alpha[:, None]
-            rho_new = np.einsum("ij,ij->i", shadow, r_new)
-            beta = np.where(ok, rho_new / np.where(ok, rho, 1.0), 0.0)
-            zeta_new, upd, alpha_s, beta_s = shifted_coefficients(zeta, zeta_prev, alpha, alpha_prev, beta,
-                                                                  beta_prev, delta, active & ok)
-            blk.advance(alpha_s, beta_s, ka)
-            zeta_prev = np.where(upd, zeta, zeta_prev)
-            zeta = np.where(upd, zeta_new, zeta)
-            newly = upd & (zeta * zeta * np.einsum("ij,ij->i", r_new, r_new) <= tol2)
-            iterations[newly] = it
-            active &= ~newly & (ok | ~run)          # a column whose seed broke down is finished
-            done_prev = report_progress(progress, active, inv, done_prev)
-            if not active.any():
-                break
-            k_blk = _next_residual(blk, active, zeta, k_blk)
-            p *= beta[:, None]
-            p += blk.Rb[:, blk.used - 1]
-            p_shadow *= beta[:, None]
-            p_shadow += shadow
-            rho = np.where(ok, rho_new, rho)
-            alpha_prev = np.where(ok, alpha, alpha_prev)
-            beta_prev = np.where(ok, beta, beta_prev)
-    blk.flush(k_blk, 0)
-    Xs = blk.X
-    converged = ~active & (iterations > 0) | (iterations == 0)
-    for j in range(c):                               # the true residual of every member
+    sh = ShiftedSystems(B, shifts, rtol, maxiter)
+    if sh.result is not None:
+        r = sh.result
+        return BiCGResult(r.X, r.iterations, r.converged, 0)
+    seed_bicg = BiCGSeed(A, sh.B, sh.seed, sh.block_slots(BLOCK_BYTES), AT=AT)
+    res = sh.solve(seed_bicg, None, progress)
+    Xs, iterations = res.X, res.iterations
+    B, tol2, shifts = sh.B, sh.tol2, np.asarray(shifts, dtype=np.float64).ravel()
+    converged = res.converged & (iterations > 0) | (iterations == 0)
+    for j in range(sh.c):                            # the true residual of every member
         for i in np.flatnonzero(converged[:, j] & (iterations[:, j] > 0)):
-            res = B[j] - A @ Xs[j, i] - shifts[order][i] * Xs[j, i]
-            converged[i, j] = bool(res @ res <= 100.0 * tol2[j])
-    return BiCGResult(Xs[:, inv], iterations[inv], converged[inv], it)
+            r = B[j] - A @ Xs[j, i] - shifts[i] * Xs[j, i]
+            converged[i, j] = bool(r @ r <= 100.0 * tol2[j])
+    return BiCGResult(Xs, iterations, converged, res.krylov_iterations)
+
+
+#: memory for the stored seed residuals of the BiCG
+BLOCK_BYTES = 64 * 2 ** 20
+
+
+class BiCGSeed(NumpySeed):
+    """The seed's BiCG: the first pass (records of the shifted recurrences, the first block of
+    residuals, the states where later blocks start); later blocks are replayed as CG's (the residual
+    and direction recurrences r −= α A p, p = r + β p are the same, with the recorded α, β)."""
+
+    def __init__(self, A, B: np.ndarray, seed: float, cap: int, *, AT=None):
+        super().__init__(A, B, seed, cap)
+        self.AT = AT
+
+    def first_pass(self, rec: Records, sh: ShiftedSystems, report) -> int:
+        A, AT, seed, c, cap = self.A, self.AT, self.seed, self.c, self.cap
+        self.rec = rec
+        delta, tol2, active, iterations = sh.delta[:, None], sh.tol2, sh.active, sh.iterations
+        r, p, Ap = self.r, self.p, self.Ap
+        shadow, p_shadow, Atp = r.copy(), r.copy(), np.zeros_like(r)
+        rho = np.einsum("ij,ij->i", shadow, r)
+        k = sh.k
+        zeta, zeta_prev = np.ones((k, c)), np.ones((k, c))
+        alpha_prev, beta_prev = np.ones(c), np.zeros(c)
+        done = report(None)
+        it = 0
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+            while it < sh.maxiter:
+                if it + 1 >= rec.sa.shape[0]:
+                    rec.grow()
+                run = active.any(axis=0)
+                it += 1
+                for j in np.flatnonzero(run):
+                    Ap[j] = A @ p[j]
+                    Atp[j] = AT @ p_shadow[j] + seed * p_shadow[j]
+                if seed != 0.0:
+                    Ap += seed * p
+                pAp = np.einsum("ij,ij->i", p_shadow, Ap)
+                ok = run & (pAp != 0) & (rho != 0) & np.isfinite(pAp)
+                alpha = np.where(ok, rho / np.where(ok, pAp, 1.0), 0.0)
+                r -= alpha[:, None] * Ap
+                if it < cap:
+                    self.Rb[:, it] = r
+                shadow -= Atp * alpha[:, None]
+                rho_new = np.einsum("ij,ij->i", shadow, r)
+                beta = np.where(ok, rho_new / np.where(ok, rho, 1.0), 0.0)
+                rec.sa[it, :c], rec.sb[it, :c] = alpha, beta
+                zeta_new, upd, alpha_s, beta_s = shifted_coefficients(zeta, zeta_prev, alpha, alpha_prev, beta,
+                                                                      beta_prev, delta, active & ok)
+                zeta_prev = np.where(upd, zeta, zeta_prev)
+                zeta = np.where(upd, zeta_new, zeta)
+                rec.ra[:, :, it], rec.rb[:, :, it], rec.rz[:, :, it] = alpha_s.T, beta_s.T, zeta.T
+                newly = upd & (zeta * zeta * np.einsum("ij,ij->i", r, r) <= tol2)
+                iterations[newly] = it
+                active &= ~newly & (ok | ~run)          # a column whose seed broke down is finished
+                done = report(done)
+                if not active.any():
+                    break
+                p *= beta[:, None]
+                p += r
+                p_shadow *= beta[:, None]
+                p_shadow += shadow
+                rho = np.where(ok, rho_new, rho)
+                alpha_prev = np.where(ok, alpha, alpha_prev)
+                beta_prev = np.where(ok, beta, beta_prev)
+                if it % cap == 0:
+                    self.saved[it // cap] = (r.copy(), p.copy())
+        return it

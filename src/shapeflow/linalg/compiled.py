@@ -8,6 +8,7 @@ Conventions of all compiled kernels: :mod:`shapeflow.accel`.
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 from numba import get_num_threads, njit, prange
 
 from ..accel import sequential, zeros
@@ -535,12 +536,19 @@ class LinalgNumba(LinalgKernels):
         # the kernel stops at convergence or at the cap: reaching the cap counts as not converged
         converged = solver.stats.iterations < maxiter and bool(np.all(np.isfinite(X)))
         if not converged and reused and B3 is B:   # B holds the residual: rebuild B
-            import scipy.sparse as sp
-
             # Jacobi: r = B − A X; SGS: r̂ = E⁻¹ r with E = D + L, the lower triangle of A
             B = (sp.tril(A, 0, format="csr") @ B3 if sgs else B3) + A @ X
         Xk = X[:, 0].copy() if squeeze else (X if k == 3 else X[:, :k].copy())
         return Xk, converged, B
+
+    def multishift_seed(self, A, B, seed, cap):
+        """The seed's CG compiled (:class:`~shapeflow.linalg.compiled_shift.CompiledSeed`) for a CSR
+        matrix and up to three columns; the reference otherwise."""
+        if B.shape[0] > 3 or not (sp.issparse(A) and A.format == "csr"):
+            return super().multishift_seed(A, B, seed, cap)
+        from .compiled_shift import CompiledSeed
+
+        return CompiledSeed(A, B, seed, cap)
 
     def weighted_col_norms(self, A, c, Y):
         if not (int32_csr(A) and Y.shape[1] == 3 and Y.flags.c_contiguous):

@@ -1,7 +1,8 @@
 """The linear-algebra kernel families (NumPy/SciPy references).
 
-* ``"linalg"`` (:class:`LinalgKernels`): the CG of :class:`~shapeflow.linalg.spd.SPDSolver` and the
-  Clenshaw step of :func:`~shapeflow.linalg.chebyshev.chebyshev_steps`;
+* ``"linalg"`` (:class:`LinalgKernels`): the CG of :class:`~shapeflow.linalg.spd.SPDSolver`, the
+  Clenshaw step of :func:`~shapeflow.linalg.chebyshev.chebyshev_steps` and the seed's CG of
+  :func:`~shapeflow.linalg.multishift.multishift_cg`;
 * ``"local"`` (:class:`LocalKernels`, any size): the brush's small systems, their narrow-band
   order and the split solve (:class:`~shapeflow.linalg.local.LocalSolver`).
 
@@ -87,6 +88,14 @@ class LinalgKernels(Family):
         solver.stats.iterations = it
         converged = not (rz > tol2).any() and bool(np.all(np.isfinite(X)))
         return (X[0] if squeeze else np.ascontiguousarray(X.T)), converged, B
+
+    def multishift_seed(self, A, B: np.ndarray, seed: float, cap: int):
+        """The seed's CG of :func:`~shapeflow.linalg.multishift.multishift_cg` on ``A + seed I`` from the
+        residuals ``B`` (c, n), storing ``cap`` residuals per block: a
+        :class:`~shapeflow.linalg.multishift.NumpySeed` (its first pass and the replays of later blocks)."""
+        from .multishift import NumpySeed
+
+        return NumpySeed(A, B, seed, cap)
 
     def weighted_col_norms(self, A, c: np.ndarray, Y: np.ndarray) -> np.ndarray:
         """sqrt(Σ_i c_i Y_ij²) of each column of Y (the Chebyshev expansion's C-norms; ``A`` is its matrix)."""

@@ -6,15 +6,31 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+import scipy.linalg
+from scipy.linalg.blas import dgemm
 
+from .. import accel
 from ..errors import ParameterError
+from .blas import SingleThreadBLAS
 from .spd import DEFAULT_RTOL
 
-__all__ = ["BLOCK_BYTES", "MultiShiftResult", "multishift_cg", "shifted_coefficients", "ShiftedBlock"]
+__all__ = ["BLOCK_BYTES", "RANK_TOL", "MultiShiftResult", "multishift_cg", "shifted_coefficients",
+           "member_coefficients", "low_rank_factors",
+           "ShiftedSystems", "NumpySeed", "Records"]
 
 
-#: memory for the block of stored seed residuals (the rest is O(k·n))
+#: memory for the block of stored seed residuals (beyond it, later blocks are replayed)
 BLOCK_BYTES = 128 * 2 ** 20
+
+#: the members' coefficients are factorised (truncated SVD) with this error per member, relative to
+#: ``rtol`` and to the member's own size (see :func:`low_rank_factors`)
+RANK_TOL = 1e-3
+
+#: the factorisation is used when its two GEMMs need at most this fraction of the flops of one
+LOW_RANK_GAIN = 0.7
+
+#: what a pass over the seed's iterations stops for (the compiled kernel's codes too)
+DONE, CHECKPOINT, PROGRESS, CAPPED, GROW = 0, 1, 2, 3, 4
 
 
 @dataclass
@@ -24,7 +40,9 @@ class MultiShiftResult:
     ``X[j, i]`` is column ``j`` of the solution for shift ``i`` (component-major,
     shifts in the order given); ``iterations[i, j]`` the iteration after which it
     met the tolerance (``-1``: never), ``converged[i, j]`` whether it did.
-    ``flushes`` counts the GEMMs folding a block of residuals into the iterates.
+    ``flushes`` counts the blocks of seed residuals folded into the iterates,
+    ``replayed`` the seed iterations run again for the blocks after the first,
+    ``ranks[j]`` the rank of column j's factorised coefficients (0: not factorised).
     """
 
     X: np.ndarray
@@ -32,11 +50,15 @@ class MultiShiftResult:
     converged: np.ndarray
     krylov_iterations: int
     flushes: int
+    replayed: int = 0
+    ranks: tuple = ()
 
 
 def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxiter: int | None = None,
-                  block_bytes: int = BLOCK_BYTES,
-                  progress: Callable[[np.ndarray], None] | None = None) -> MultiShiftResult:
+                  block_bytes: int = BLOCK_BYTES, low_rank: bool = True,
+                  progress: Callable[[np.ndarray], None] | None = None,
+                  emit: Callable[[np.ndarray, np.ndarray], None] | None = None,
+                  post: tuple | None = None) -> MultiShiftResult:
     """Solve ``(A + s_i I) X_i = B`` for every shift ``s_i`` with one Krylov space.
 
     Parameters
@@ -51,102 +73,333 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
         longer updated after that.
     maxiter : cap on the shared iterations (default ``max(200, 10·√n + 100)``,
         as :class:`~shapeflow.linalg.spd.SPDSolver`).
-    block_bytes : memory for the stored seed residuals; the shifted iterates
-        are built from them with one GEMM per block.
+    block_bytes : memory for the stored seed residuals; when they do not all fit,
+        the seed's iterations after the first block are run again from saved states.
+    low_rank : form the iterates through a truncated factorisation of their
+        coefficients where it saves flops (:func:`low_rank_factors`).
     progress : called with the (k,) bool array "shift converged in every
         column" whenever it changes.
+    emit : when given, the iterates are not collected in ``X`` (which is then None) but
+        handed over as they are formed: ``emit(shifts, rows)`` with ``rows[j, q]`` column ``j``
+        of the solution for shift ``shifts[q]`` (a buffer reused after the call returns).
+    post : ``(scale, take)``, either may be None: every solution column x is returned (or
+        emitted) as ``(scale * x)[take]`` (applied to the low-rank factor, before the rows are formed).
 
     Notes
     -----
     CG-M (Jegerlehner 1996; Frommer 2003): CG runs on the smallest shift (the
     seed); the residual of shift ``s`` is ``ζ_s r`` with ζ from a three-term
     scalar recurrence, its search direction is ``p_s ← ζ_s r + β_s p_s`` and
-    its iterate ``x_s ← x_s + α_s p_s``.  Here ``p_s`` and ``x_s`` are carried
-    as coefficients over the stored residuals of the current block (plus the
-    block-start direction ``P_s`` after the first block), so an iteration
-    costs the seed's matrix-vector product and vector updates plus
-    O(k × block) scalars; the k shifted vectors are formed by a GEMM when the
-    block is full or the run ends (one GEMM in all when the residuals fit in
-    ``block_bytes``).  Columns are independent CG runs (their own α, β), as
-    in the repository's CG.
+    its iterate ``x_s ← x_s + α_s p_s``.  So ``x_s = Σ_t c_st r_t`` over the
+    seed's residuals, and the coefficients follow from the recorded scalars
+    afterwards (:func:`member_coefficients`).  An iteration costs the seed's
+    product and vector updates plus O(k) scalars; the seed residuals are
+    stored in a block and folded into the k iterates by GEMMs at the end.
+    Columns are independent CG runs (their own α, β), as in the repository's
+    CG.  The seed's iterations are the linalg kernel family's
+    (``accel.kernels("linalg", n).multishift_seed``): :class:`NumpySeed`, or compiled
+    (:mod:`~shapeflow.linalg.compiled_shift`, a CSR matrix, up to three columns) with the same
+    formulas in the same order.
+
     """
-    B = np.ascontiguousarray(np.atleast_2d(np.asarray(B, dtype=np.float64)))
-    c, n = B.shape
-    shifts = np.asarray(shifts, dtype=np.float64).ravel()
-    k = shifts.size
-    if k == 0:
-        return MultiShiftResult(np.zeros((c, 0, n)), np.zeros((0, c), np.int64), np.zeros((0, c), bool), 0, 0)
-    if not np.all(np.isfinite(shifts)):
-        raise ParameterError("shifts must be finite")
-    order = np.argsort(shifts, kind="stable")           # hardest (smallest shift) first
-    inv = np.argsort(order)
-    seed = float(shifts[order][0])
-    delta = (shifts[order] - seed)[:, None]             # (k, 1) >= 0
-    if maxiter is None:
-        maxiter = max(200, 10 * int(np.sqrt(n)) + 100)
-    cap = int(max(8, min(maxiter + 1, block_bytes // max(1, 8 * c * n))))
+    sh = ShiftedSystems(B, shifts, rtol, maxiter)
+    if sh.result is not None:
+        return sh.result
+    seed_cg = accel.kernels("linalg", sh.n).multishift_seed(A, sh.B, sh.seed, sh.block_slots(block_bytes))
+    return sh.solve(seed_cg, rtol if low_rank else None, progress, emit, post)
 
-    rho = np.einsum("ij,ij->i", B, B)                   # (c,)
-    tol2 = rtol * rtol * rho
-    active = np.broadcast_to(rho > tol2, (k, c)).copy()  # (shift, column) still iterating
-    iterations = np.where(active, -1, 0)
-    if not active.any():
-        return MultiShiftResult(np.zeros((c, k, n)), iterations[inv], ~active[inv], 0, 0)
-    blk = ShiftedBlock(B, k, cap)
-    p = B.copy()
-    Ap = np.zeros_like(B)                               # stays 0 in columns that never run
-    zeta = np.ones((k, c))
-    zeta_prev = np.ones((k, c))
-    alpha_prev = np.ones(c)
-    beta_prev = np.zeros(c)
-    done_prev = report_progress(progress, active, inv, None)
 
-    it = 0
-    k_blk = k                                           # shifts active at the start of the block
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
-        while it < maxiter:
-            cols = active.any(axis=0)                    # columns still running
-            ka = int(np.flatnonzero(active.any(axis=1)).max()) + 1   # active shifts: (about) a prefix
-            it += 1
-            r = blk.Rb[:, blk.used - 1]
-            for j in np.flatnonzero(cols):               # (per column: faster than SciPy's multi-vector product)
-                Ap[j] = A @ p[j]
-            if seed != 0.0:
-                Ap += seed * p
-            pAp = np.einsum("ij,ij->i", p, Ap)
-            ok = cols & (pAp > 0)
-            alpha = np.where(ok, rho / np.where(ok, pAp, 1.0), 0.0)
-            r_new = blk.next_slot()
-            np.multiply(Ap, alpha[:, None], out=r_new)
-            np.subtract(r, r_new, out=r_new)
-            rho_new = np.einsum("ij,ij->i", r_new, r_new)
-            beta = np.where(ok & (rho > 0), rho_new / np.where(rho > 0, rho, 1.0), 0.0)
-            zeta_new, upd, alpha_s, beta_s = shifted_coefficients(zeta, zeta_prev, alpha, alpha_prev, beta,
-                                                                  beta_prev, delta, active & ok)
-            blk.advance(alpha_s, beta_s, ka)
-            # convergence of each (shift, column) after this iteration
-            zeta_prev = np.where(upd, zeta, zeta_prev)
-            zeta = np.where(upd, zeta_new, zeta)
-            newly = upd & (zeta * zeta * rho_new <= tol2)
-            iterations[newly] = it
-            active &= ~newly
-            active &= ok | ~cols                         # a column whose seed broke down is finished
-            done_prev = report_progress(progress, active, inv, done_prev)
-            if not active.any():
-                break
-            ka = int(np.flatnonzero(active.any(axis=1)).max()) + 1
-            if blk.used == blk.cap:                      # block full: fold it into X and P, start a new one
-                blk.flush(k_blk, ka)
-                k_blk = ka
-                blk.restart()
-            blk.append(zeta, ka)
-            p *= beta[:, None]
-            p += blk.Rb[:, blk.used - 1]
-            rho = np.where(ok, rho_new, rho)
-            alpha_prev = np.where(ok, alpha, alpha_prev)
-            beta_prev = np.where(ok, beta, beta_prev)
-    blk.flush(k_blk, 0)
-    return MultiShiftResult(blk.X[:, inv], iterations[inv], ~active[inv], it, blk.flushes)
+class ShiftedSystems:
+    """The set-up shared by the multi-shift solvers (CG here, BiCG in ``flow.family_features``): shifts
+    sorted hardest (smallest) first, the seed, the tolerances, which (shift, column) iterate;
+    ``result`` is the answer already when nothing iterates."""
+
+    def __init__(self, B, shifts, rtol: float, maxiter: int | None):
+        self.B = B = np.ascontiguousarray(np.atleast_2d(np.asarray(B, dtype=np.float64)))
+        self.c, self.n = c, n = B.shape
+        shifts = np.asarray(shifts, dtype=np.float64).ravel()
+        self.k = k = shifts.size
+        self.result = None
+        if k and not np.all(np.isfinite(shifts)):
+            raise ParameterError("shifts must be finite")
+        self.order = np.argsort(shifts, kind="stable")      # hardest (smallest shift) first
+        self.inv = np.argsort(self.order)
+        self.shifts = shifts[self.order]
+        self.seed = float(self.shifts[0]) if k else 0.0
+        self.delta = np.ascontiguousarray(self.shifts - self.seed)   # (k,) >= 0
+        self.maxiter = max(200, 10 * int(np.sqrt(n)) + 100) if maxiter is None else maxiter
+        self.rho = np.einsum("ij,ij->i", B, B)                # (c,)
+        self.tol2 = rtol * rtol * self.rho
+        self.active = np.broadcast_to(self.rho > self.tol2, (k, c)).copy()  # (shift, column) not yet within rtol
+        self.live = self.active.copy()          # its recurrence still runs (past rtol too, until the seed stops)
+        self.iterations = np.where(self.active, -1, 0)
+        if not self.active.any():
+            self.result = MultiShiftResult(np.zeros((c, k, n)), self.iterations[self.inv],
+                                           ~self.active[self.inv], 0, 0)
+
+    def block_slots(self, block_bytes: int) -> int:
+        """Seed residuals stored in the first block (and in every replayed one)."""
+        return int(max(8, min(self.maxiter + 1, block_bytes // max(1, 8 * self.c * self.n))))
+
+    def solve(self, seed_cg, rtol: float | None, progress, emit=None, post=None) -> MultiShiftResult:
+        """The first pass of ``seed_cg``, the members' coefficients, the fold (low rank with ``rtol``);
+        the iterates into ``X`` or handed to ``emit`` (see :func:`multishift_cg`)."""
+        rec = Records(self.c, self.k, min(self.maxiter + 1, 256))
+        rec.srho[0, :self.c] = self.rho
+        m = seed_cg.first_pass(rec, self, lambda done: report_progress(progress, self.active, self.inv, done))
+        stop = np.where(self.iterations >= 0, self.iterations, m).T   # (c, k): where each shift met rtol
+        X = None
+        if emit is None:
+            X = np.empty((self.c, self.k, self.n))
+
+            def emit(shifts, rows):
+                X[:, shifts] = rows
+        flushes, ranks = fold(seed_cg, rec, m, stop, self.inv, rtol, emit, post)
+        return MultiShiftResult(X, self.iterations[self.inv], ~self.active[self.inv], m, flushes,
+                                seed_cg.replayed, ranks)
+
+
+#: shifts formed at a time when the iterates are handed out row by row (``emit``)
+EMIT_ROWS = 16
+
+
+def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol: float | None, emit,
+         post=None):
+    """The iterates x_s = Σ_t C[s, t] r_t from the blocks of seed residuals (the first one stored, the
+    others replayed), transformed by ``post`` and handed to ``emit(shifts, rows)`` (shifts in the
+    caller's order, ``rows`` (c, shifts, n) a reused buffer); returns (blocks, ranks).
+
+    Per column, with ``rtol``, through :func:`low_rank_factors` of the coefficients of the recurrences
+    run to the seed's last iteration, where that saves flops; otherwise one GEMM per block with the
+    coefficients of the iterates as they were when each shift met its tolerance (``stop``).
+    """
+    c, k = stop.shape
+    n, cap = seed_cg.n, seed_cg.cap
+    factors = [None] * c
+    if rtol is not None and 20 * min(k, m) < n:
+        C = member_coefficients(rec.ra, rec.rb, rec.rz, m)
+        factors = [low_rank_factors(C[j], rec.srho[:m, j], RANK_TOL * rtol) for j in range(c)]
+    full = [j for j in range(c) if factors[j] is None]
+    X = np.empty((len(full), k, n)) if full else None
+    Cp = {}
+    if full:
+        C = member_coefficients(rec.ra, rec.rb, rec.rz, m, stop)
+        Cp = {j: np.ascontiguousarray(C[j][inv]) for j in full}
+    W = [None if f is None else np.zeros((f[0].shape[1], n)) for f in factors]
+    nblocks = -(-m // cap) if m else 0
+    for b in range(nblocks):
+        t0, t1 = b * cap, min(m, (b + 1) * cap)
+        if b:
+            seed_cg.replay(b, t0, t1)
+        Rv = seed_cg.Rb[:, :t1 - t0]
+        for j in range(c):
+            if factors[j] is not None:
+                gemm(factors[j][1][t0:t1].T, Rv[j], W[j], True)
+            else:
+                gemm(Cp[j][:, t0:t1], Rv[j], X[full.index(j)], b > 0)
+    seed_cg.release()
+    if not nblocks and X is not None:
+        X[:] = 0.0
+    lefts = [None if f is None else f[0][inv] for f in factors]     # rows in the caller's order
+    scale, take = post if post is not None else (None, None)
+    for j in range(c):
+        if factors[j] is not None:
+            if scale is not None:
+                W[j] *= scale                           # rows of W: the transform is linear
+            if take is not None:
+                W[j] = W[j][:, take]
+    chunk = min(EMIT_ROWS, k)
+    buf = np.empty((c, chunk, n))                       # buf[j]: contiguous rows, one GEMM's output
+    for s0 in range(0, k, chunk):
+        q = min(chunk, k - s0)
+        for j in range(c):
+            if factors[j] is not None:
+                gemm(lefts[j][s0:s0 + q], W[j], buf[j, :q])
+                continue
+            rows = X[full.index(j), s0:s0 + q]
+            if scale is not None:
+                rows = rows * scale
+            buf[j, :q] = rows if take is None else rows[:, take]
+        emit(np.arange(s0, s0 + q), buf[:, :q])
+    return nblocks, tuple(0 if f is None else f[0].shape[1] for f in factors)
+
+
+def gemm(A: np.ndarray, B: np.ndarray, out: np.ndarray, accumulate: bool = False) -> None:
+    """``out = A @ B`` (``out += A @ B`` with ``accumulate``) for a C-contiguous ``out`` and ``B``, by SciPy's
+    BLAS on one thread (:class:`~shapeflow.linalg.blas.SingleThreadBLAS`): OpenBLAS's threads keep
+    spinning after a call, which on two shared cores slowed the seed's compiled iterations that
+    follow by up to 2× (and the GEMMs themselves are short)."""
+    if out.size == 0:
+        return
+    if A.shape[1] == 0:                                 # (BLAS refuses empty operands)
+        if not accumulate:
+            out[:] = 0.0
+        return
+    with SingleThreadBLAS():
+        r = dgemm(1.0, B.T, A.T, beta=1.0 if accumulate else 0.0, c=out.T, overwrite_c=True)
+    if not np.shares_memory(r, out):                    # (a copy where the layout asked for one)
+        out[:] = r.T
+
+
+def low_rank_factors(C: np.ndarray, rho: np.ndarray, tol: float):
+    """(L, R) with ``C ≈ L Rᵀ`` (k × r, m × r), or None when the two GEMMs would not save flops.
+
+    ``C`` (k × m) are the coefficients of the k iterates over the seed residuals r_t, whose squared
+    norms are ``rho`` (m,).  CG's residuals are mutually orthogonal, so on the normalised residuals
+    the coefficient rows *are* the iterates (up to rounding); each row is scaled to norm 1 and the
+    SVD truncated after the singular values above ``tol``: every iterate then changes by at most
+    ``tol`` × its own norm.  The coefficients of one seed residual vary smoothly with the shift
+    (they sample 1/(σ + μ) on the spectrum), so the rank is small (13 of 47 members on the
+    figure-1 family at rtol = 1e-8).
+    """
+    k, m = C.shape
+    nr = np.sqrt(np.maximum(rho, 0.0))
+    Cn = C * nr
+    size = np.linalg.norm(Cn, axis=1)
+    size = np.where(size > 0, size, 1.0)
+    with SingleThreadBLAS():      # a small SVD: OpenBLAS's threads only wait for each other
+        U, S, Vt = scipy.linalg.svd(Cn / size[:, None], full_matrices=False, check_finite=False)
+    r = int(np.count_nonzero(S > tol))
+    if r * (m + k) > LOW_RANK_GAIN * k * m:
+        return None
+    left = (size[:, None] * U[:, :r]) * S[:r]
+    right = Vt[:r].T / np.where(nr > 0, nr, np.inf)[:, None]
+    return np.ascontiguousarray(left), np.ascontiguousarray(right)
+
+
+def member_coefficients(ra: np.ndarray, rb: np.ndarray, rz: np.ndarray, m: int,
+                        stop: np.ndarray | None = None) -> np.ndarray:
+    """The coefficients (c, k, m) of the seed residuals r_0 … r_{m−1} in each shift's iterate.
+
+    From the recorded α_s(t), β_s(t) and ζ_s(t) (0 where the shift did not move):
+    ``p_s(t) = ζ_s(t) r_t + β_s(t) p_s(t−1)`` and ``x_s = Σ_t α_s(t) p_s(t−1)``, so the
+    coefficient of r_t is ``ζ_s(t) G_s(t)`` with ``G_s(t) = α_s(t+1) + β_s(t+1) G_s(t+1)``,
+    ``G_s(m) = 0``.  ``stop`` (c, k): the iterates after that many iterations (the recurrences
+    recorded beyond it are left out).
+    """
+    c, k = ra.shape[:2]
+    ra, rb = ra[:, :, :m + 1], rb[:, :, :m + 1]
+    if stop is not None:
+        keep = np.arange(m + 1) <= stop[:, :, None]
+        ra, rb = ra * keep, rb * keep
+    C = np.empty((c, k, m))
+    G = np.zeros((c, k))
+    for t in range(m - 1, -1, -1):
+        G *= rb[:, :, t + 1]
+        G += ra[:, :, t + 1]
+        np.multiply(rz[:, :, t], G, out=C[:, :, t])
+    return C
+
+
+class Records:
+    """The scalars of the first pass: per (column, shift, iteration) α_s, β_s, ζ_s; per
+    iteration the seed's α, β and ρ = rᵀr (three columns, unused ones 0).  Grown on demand."""
+
+    def __init__(self, c: int, k: int, size: int):
+        self.ra = np.zeros((c, k, size))
+        self.rb = np.zeros((c, k, size))
+        self.rz = np.zeros((c, k, size))
+        self.rz[:, :, 0] = 1.0                          # p_s(0) = r_0 for every shift
+        self.sa = np.zeros((size, 3))
+        self.sb = np.zeros((size, 3))
+        self.srho = np.zeros((size, 3))
+
+    def grow(self) -> None:
+        for name in ("ra", "rb", "rz"):
+            a = getattr(self, name)
+            setattr(self, name, np.concatenate([a, np.zeros_like(a)], axis=2))
+        for name in ("sa", "sb", "srho"):
+            a = getattr(self, name)
+            setattr(self, name, np.concatenate([a, np.zeros_like(a)], axis=0))
+
+
+class NumpySeed:
+    """The seed's CG in NumPy (component-major (c, n) vectors): the first pass (records, the first
+    block of residuals, the states where later blocks start) and the replay of a later block."""
+
+    def __init__(self, A, B: np.ndarray, seed: float, cap: int):
+        self.A, self.seed, self.cap = A, seed, cap
+        self.c, self.n = B.shape
+        self.Rb = np.empty((self.c, cap, self.n))       # the block's seed residuals
+        self.Rb[:, 0] = B
+        self.r = B.copy()
+        self.p = B.copy()
+        self.Ap = np.zeros_like(B)                      # stays 0 in columns that never run
+        self.saved: dict = {}                           # block -> (r, p) at its first iteration
+        self.replayed = 0
+        self.rec = None
+
+    def release(self) -> None:
+        self.Rb = self.r = self.p = self.Ap = None
+        self.saved = {}
+
+    def product(self, cols) -> None:
+        for j in cols:                                  # (per column: faster than SciPy's multi-vector product)
+            self.Ap[j] = self.A @ self.p[j]
+        if self.seed != 0.0:
+            self.Ap += self.seed * self.p
+
+    def first_pass(self, rec: Records, sh: ShiftedSystems, report) -> int:
+        c, cap = self.c, self.cap
+        self.rec = rec
+        delta, rho, tol2, active, live, iterations = sh.delta, sh.rho, sh.tol2, sh.active, sh.live, sh.iterations
+        zeta = np.ones((delta.size, c))
+        zeta_prev = np.ones((delta.size, c))
+        alpha_prev = np.ones(c)
+        beta_prev = np.zeros(c)
+        done = report(None)
+        it = 0
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore", under="ignore"):
+            while it < sh.maxiter:
+                if it + 1 >= rec.sa.shape[0]:
+                    rec.grow()
+                cols = active.any(axis=0)               # columns still running
+                it += 1
+                self.product(np.flatnonzero(cols))
+                pAp = np.einsum("ij,ij->i", self.p, self.Ap)
+                ok = cols & (pAp > 0)
+                alpha = np.where(ok, rho / np.where(ok, pAp, 1.0), 0.0)
+                self.r -= alpha[:, None] * self.Ap
+                if it < cap:
+                    self.Rb[:, it] = self.r
+                rho_new = np.einsum("ij,ij->i", self.r, self.r)
+                beta = np.where(ok & (rho > 0), rho_new / np.where(rho > 0, rho, 1.0), 0.0)
+                rec.sa[it, :c], rec.sb[it, :c], rec.srho[it, :c] = alpha, beta, rho_new
+                zeta_new, upd, alpha_s, beta_s = shifted_coefficients(zeta, zeta_prev, alpha, alpha_prev, beta,
+                                                                      beta_prev, delta[:, None], live & ok)
+                zeta_prev = np.where(upd, zeta, zeta_prev)
+                zeta = np.where(upd, zeta_new, zeta)
+                rec.ra[:, :, it], rec.rb[:, :, it], rec.rz[:, :, it] = alpha_s.T, beta_s.T, zeta.T
+                newly = upd & active & (zeta * zeta * rho_new <= tol2)
+                iterations[newly] = it
+                active &= ~newly
+                active &= ok | ~cols                     # a column whose seed broke down is finished
+                live &= ok | ~cols
+                rho = np.where(ok, rho_new, rho)
+                alpha_prev = np.where(ok, alpha, alpha_prev)
+                beta_prev = np.where(ok, beta, beta_prev)
+                done = report(done)
+                if not active.any():
+                    break
+                self.p *= beta[:, None]
+                self.p += self.r
+                if it % cap == 0:
+                    self.saved[it // cap] = (self.r.copy(), self.p.copy())
+        return it
+
+    def replay(self, b: int, t0: int, t1: int) -> None:
+        """The residuals r_t0 … r_{t1−1} into the block, from the state saved at t0 (the recorded α and β)."""
+        r, p = self.saved.pop(b)
+        self.r, self.p = r, p
+        self.Rb[:, 0] = r
+        cols = np.flatnonzero(self.rec.sa[t0 + 1:t1, :self.c].any(axis=0))
+        for t in range(t0 + 1, t1):
+            self.product(cols)
+            self.r -= self.rec.sa[t, :self.c, None] * self.Ap
+            self.Rb[:, t - t0] = self.r
+            self.p *= self.rec.sb[t, :self.c, None]
+            self.p += self.r
+        self.replayed += t1 - t0 - 1
 
 
 def report_progress(progress, active: np.ndarray, inv: np.ndarray, before: np.ndarray | None) -> np.ndarray:
@@ -169,80 +422,3 @@ def shifted_coefficients(zeta, zeta_prev, alpha, alpha_prev, beta, beta_prev, de
     alpha_s = np.where(upd, alpha * ratio, 0.0)
     beta_s = np.where(upd, beta * ratio * ratio, 0.0)
     return zeta_new, upd, alpha_s, beta_s
-
-
-class ShiftedBlock:
-    """The shifted iterates of :func:`multishift_cg` as coefficients over a block of stored seed residuals.
-
-    ``p_s = a_s P_s + Σ_t Cf[t] Rb[t]`` and ``x_s = X_s + xa_s P_s + Σ_t Xf[t] Rb[t]``
-    (per column); :meth:`flush` folds the block into ``X`` and ``P`` with one
-    GEMM per column.  ``r`` of the seed is always ``Rb[:, used - 1]``.
-    """
-
-    def __init__(self, B: np.ndarray, k: int, cap: int):
-        c, n = B.shape
-        self.c, self.n, self.cap = c, n, cap
-        self.X = np.empty((c, k, n))                    # written by the first flush
-        self.Rb = np.empty((c, cap, n))                 # the block's seed residuals
-        self.Rb[:, 0] = B
-        self.used = 1
-        self.r_spare = np.empty_like(B)                 # the new residual when the block is full
-        self.P = None                                   # block-start directions P_s (c, kp, n), after a first block
-        self.Cf = np.zeros((c, k, cap))
-        self.Xf = np.zeros((c, k, cap))
-        self.a = np.zeros((c, k))
-        self.xa = np.zeros((c, k))
-        self.Cf[:, :, 0] = 1.0                          # p_s(0) = r(0) for every shift
-        self.flushes = 0
-
-    def next_slot(self) -> np.ndarray:
-        """Where the next seed residual goes."""
-        return self.Rb[:, self.used] if self.used < self.cap else self.r_spare
-
-    def advance(self, alpha_s: np.ndarray, beta_s: np.ndarray, ka: int) -> None:
-        """x_s += α_s p_s ;  p_s ← β_s p_s (+ ζ_s r_new in :meth:`append`): coefficients only."""
-        used = self.used
-        aT = alpha_s[:ka].T                              # (c, ka)
-        self.Xf[:, :ka, :used] += aT[:, :, None] * self.Cf[:, :ka, :used]
-        self.xa[:, :ka] += aT * self.a[:, :ka]
-        bT = beta_s[:ka].T
-        self.Cf[:, :ka, :used] *= bT[:, :, None]
-        self.a[:, :ka] *= bT
-
-    def append(self, zeta: np.ndarray, ka: int) -> None:
-        """The new seed residual joins the block with coefficient ζ_s in every p_s."""
-        self.Cf[:, :ka, self.used] = zeta[:ka].T
-        self.used += 1
-
-    def restart(self) -> None:
-        """A new block starting with the spare residual (after :meth:`flush`)."""
-        self.Cf[:] = 0.0
-        self.Xf[:] = 0.0
-        self.a[:] = 1.0
-        self.xa[:] = 0.0
-        self.used = 0
-        self.Rb[:, 0] = self.r_spare
-
-    def flush(self, kx: int, ka: int) -> None:
-        """Fold the block into X (shifts [:kx], all that were active in it) and P ([:ka], still active)."""
-        self.flushes += 1
-        Rv = self.Rb[:, :self.used]
-        Xf, Cf, X, P = self.Xf, self.Cf, self.X, self.P
-        for j in range(self.c):
-            if self.flushes == 1:                        # X is still empty: write, don't accumulate
-                np.matmul(Xf[j, :kx, :self.used], Rv[j], out=X[j, :kx])
-                X[j, kx:] = 0.0
-                continue
-            if P is not None:
-                for s_ in np.flatnonzero(self.xa[j, :kx]):
-                    X[j, s_] += self.xa[j, s_] * P[j, s_]
-            X[j, :kx] += Xf[j, :kx, :self.used] @ Rv[j]
-        if ka:
-            if P is None:
-                self.P = P = np.empty((self.c, ka, self.n))
-                for j in range(self.c):
-                    np.matmul(Cf[j, :ka, :self.used], Rv[j], out=P[j])
-            else:
-                for j in range(self.c):
-                    P[j, :ka] *= self.a[j, :ka, None]
-                    P[j, :ka] += Cf[j, :ka, :self.used] @ Rv[j]

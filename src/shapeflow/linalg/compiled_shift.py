@@ -1,0 +1,260 @@
+"""Compiled multi-shift CG: the seed's iterations and the shifted recurrences of
+:func:`shapeflow.linalg.multishift.multishift_cg` in one loop (:class:`CompiledSeed`, which
+:meth:`shapeflow.linalg.compiled.LinalgNumba.multishift_seed` hands out).
+
+The NumPy twin is :class:`~shapeflow.linalg.multishift.NumpySeed`, the linalg family's reference
+(same formulas in the same order; the sums differ in rounding only); ``tests/linalg/test_multishift.py``
+compares the two.  Up to three columns, stored (n, 3) as the flow's CG does (an unused column is
+zero and never iterates).  An iteration is three passes over the rows (the product with its dots,
+the residual update with its dots and its copy into the block, the direction update) and
+O(shifts × block) scalar work; the block's GEMMs stay in NumPy (BLAS).
+Conventions of all compiled kernels: :mod:`shapeflow.accel`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+# what :func:`run` returns: every (shift, column) finished, a block boundary passed (save the
+# state), a shift finished in every column (report progress), the iteration cap, the records are
+# full (grow them)
+from .multishift import CAPPED, CHECKPOINT, DONE, GROW, PROGRESS, NumpySeed, Records, ShiftedSystems
+
+__all__ = ["CompiledSeed", "run", "replay", "DONE", "CAPPED"]
+
+
+@njit(cache=True)
+def _product(indptr, indices, data, seed, P, AP):
+    """AP = (A + seed I) P for the three columns of P (n, 3); returns pᵀAp per column (row order)."""
+    n = indptr.size - 1
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    q0 = indptr[0]
+    for i in range(n):
+        q1 = indptr[i + 1]
+        a0 = 0.0
+        a1 = 0.0
+        a2 = 0.0
+        for q in range(q0, q1):
+            j = np.uint64(indices[q])
+            v = data[q]
+            a0 += v * P[j, 0]
+            a1 += v * P[j, 1]
+            a2 += v * P[j, 2]
+        q0 = q1
+        a0 += seed * P[i, 0]
+        a1 += seed * P[i, 1]
+        a2 += seed * P[i, 2]
+        AP[i, 0] = a0
+        AP[i, 1] = a1
+        AP[i, 2] = a2
+        s0 += P[i, 0] * a0
+        s1 += P[i, 1] * a1
+        s2 += P[i, 2] * a2
+    return s0, s1, s2
+
+
+@njit(cache=True)
+def _residual(R, AP, alpha, Rb, slot, c):
+    """R −= αAP (three columns), its first ``c`` columns copied into ``Rb[:, slot]`` when ``slot`` is
+    inside the block; returns rᵀr per column."""
+    n = R.shape[0]
+    s = np.zeros(3)
+    a0 = alpha[0]
+    a1 = alpha[1]
+    a2 = alpha[2]
+    store = slot < Rb.shape[1]
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    for i in range(n):
+        r0 = R[i, 0] - a0 * AP[i, 0]
+        r1 = R[i, 1] - a1 * AP[i, 1]
+        r2 = R[i, 2] - a2 * AP[i, 2]
+        R[i, 0] = r0
+        R[i, 1] = r1
+        R[i, 2] = r2
+        s0 += r0 * r0
+        s1 += r1 * r1
+        s2 += r2 * r2
+        if store:
+            Rb[0, slot, i] = r0
+            if c > 1:
+                Rb[1, slot, i] = r1
+                if c > 2:
+                    Rb[2, slot, i] = r2
+    s[0] = s0
+    s[1] = s1
+    s[2] = s2
+    return s
+
+
+@njit(cache=True)
+def _direction(P, R, beta):
+    """P = R + βP (three columns)."""
+    n = P.shape[0]
+    b0 = beta[0]
+    b1 = beta[1]
+    b2 = beta[2]
+    for i in range(n):
+        P[i, 0] = R[i, 0] + b0 * P[i, 0]
+        P[i, 1] = R[i, 1] + b1 * P[i, 1]
+        P[i, 2] = R[i, 2] + b2 * P[i, 2]
+
+
+@njit(cache=True)
+def run(indptr, indices, data, seed, P, AP, R, Rb, delta, zeta, zeta_prev, rho, alpha_prev, beta_prev, tol2,
+        active, live, iterations, ra, rb, rz, sa, sb, srho, state, maxiter):
+    """The first pass of ``NumpySeed.first_pass`` until a block boundary, a finished shift, the end,
+    the cap or full records (the returned code); ``state[0]`` counts the iterations.
+
+    P, AP, R: the seed's direction, product and residual (n, 3); Rb (c, cap, n) the first block of
+    residuals (r_t in slot t); ζ, ``active`` (not yet within the tolerance) and ``live`` (recurrence
+    still running) per (shift, column); ρ, α, β per column (3,);
+    the records ``ra, rb, rz`` (c, k, L) and ``sa, sb, srho`` (L, 3) are filled at each iteration.
+    """
+    c = Rb.shape[0]
+    cap = Rb.shape[1]
+    k = delta.size
+    alpha = np.zeros(3)
+    beta = np.zeros(3)
+    ok = np.zeros(3, np.bool_)
+    cols = np.zeros(3, np.bool_)
+    while state[0] < maxiter:
+        if state[0] + 1 >= sa.shape[0]:
+            return GROW
+        state[0] += 1
+        it = state[0]
+        for j in range(3):
+            cols[j] = False
+        for s in range(k):
+            for j in range(c):
+                if active[s, j]:
+                    cols[j] = True
+        pap = _product(indptr, indices, data, seed, P, AP)
+        for j in range(3):
+            ok[j] = cols[j] and pap[j] > 0.0
+            alpha[j] = rho[j] / pap[j] if ok[j] else 0.0
+        rho_new = _residual(R, AP, alpha, Rb, it, c)
+        for j in range(3):
+            beta[j] = rho_new[j] / rho[j] if (ok[j] and rho[j] > 0.0) else 0.0
+            sa[it, j] = alpha[j]
+            sb[it, j] = beta[j]
+            srho[it, j] = rho_new[j]
+        finished = False
+        for s in range(k):
+            d = delta[s]
+            for j in range(c):
+                a_s = 0.0
+                b_s = 0.0
+                if live[s, j] and ok[j]:
+                    zt = zeta[s, j]
+                    zp = zeta_prev[s, j]
+                    den = (alpha_prev[j] * zp * (1.0 + alpha[j] * d)
+                           + alpha[j] * beta_prev[j] * (zp - zt))
+                    zn = zt * zp * alpha_prev[j] / den
+                    ratio = zn / zt
+                    if np.isfinite(ratio):
+                        a_s = alpha[j] * ratio
+                        b_s = beta[j] * ratio * ratio
+                        zeta_prev[s, j] = zt
+                        zeta[s, j] = zn
+                        if active[s, j] and zn * zn * rho_new[j] <= tol2[j]:
+                            iterations[s, j] = it
+                            active[s, j] = False
+                            finished = True
+                ra[j, s, it] = a_s
+                rb[j, s, it] = b_s
+                rz[j, s, it] = zeta[s, j]
+        running = False
+        for j in range(c):
+            if cols[j] and not ok[j]:          # a column whose seed broke down is finished
+                for s in range(k):
+                    active[s, j] = False
+                    live[s, j] = False
+            if ok[j]:
+                rho[j] = rho_new[j]
+                alpha_prev[j] = alpha[j]
+                beta_prev[j] = beta[j]
+            for s in range(k):
+                if active[s, j]:
+                    running = True
+        if not running:
+            return DONE
+        _direction(P, R, beta)
+        if it % cap == 0:
+            return CHECKPOINT
+        if finished:
+            return PROGRESS
+    return CAPPED
+
+
+@njit(cache=True)
+def replay(indptr, indices, data, seed, P, AP, R, Rb, sa, sb, t0, t1):
+    """The residuals r_t0 … r_{t1−1} into ``Rb[:, 0 … t1−t0−1]`` from R = r_t0, P = p_t0 (the state
+    saved after iteration t0) with the recorded α and β: the first pass's arithmetic, so the same bits."""
+    c = Rb.shape[0]
+    n = R.shape[0]
+    for j in range(c):
+        for i in range(n):
+            Rb[j, 0, i] = R[i, j]
+    for t in range(t0 + 1, t1):
+        _product(indptr, indices, data, seed, P, AP)
+        _residual(R, AP, sa[t], Rb, t - t0, c)
+        _direction(P, R, sb[t])
+
+
+class CompiledSeed(NumpySeed):
+    """The seed's CG of :class:`~shapeflow.linalg.multishift.NumpySeed` compiled ((n, 3) vectors,
+    unused columns 0): :func:`run` and :func:`replay`."""
+
+    def __init__(self, A, B: np.ndarray, seed: float, cap: int):
+        self.A, self.seed, self.cap = A, seed, cap
+        self.c, self.n = B.shape
+        self.indptr = A.indptr.astype(np.int32, copy=False)
+        self.indices = A.indices.astype(np.int32, copy=False)
+        self.data = np.ascontiguousarray(A.data, dtype=np.float64)
+        self.Rb = np.empty((self.c, cap, self.n))
+        self.Rb[:, 0] = B
+        self.P = np.zeros((self.n, 3))
+        self.P[:, :self.c] = B.T
+        self.R = self.P.copy()
+        self.AP = np.empty((self.n, 3))
+        self.saved = {}
+        self.replayed = 0
+        self.rec = None
+
+    def release(self) -> None:
+        self.Rb = self.P = self.R = self.AP = None
+        self.saved = {}
+
+    def first_pass(self, rec: Records, sh: ShiftedSystems, report) -> int:
+        c = self.c
+        self.rec = rec
+        delta, rho, tol2, active, iterations = sh.delta, sh.rho, sh.tol2, sh.active, sh.iterations
+        k = delta.size
+        zeta, zeta_prev = np.ones((k, c)), np.ones((k, c))
+        rho3, tol3 = np.zeros(3), np.zeros(3)
+        rho3[:c], tol3[:c] = rho, tol2
+        alpha_prev, beta_prev = np.ones(3), np.zeros(3)
+        state = np.zeros(1, np.int64)
+        done = report(None)
+        while True:
+            st = run(self.indptr, self.indices, self.data, self.seed, self.P, self.AP, self.R, self.Rb,
+                               delta, zeta, zeta_prev, rho3, alpha_prev, beta_prev, tol3, active, sh.live, iterations,
+                               rec.ra, rec.rb, rec.rz, rec.sa, rec.sb, rec.srho, state, sh.maxiter)
+            done = report(done)
+            if st == GROW:
+                rec.grow()
+            elif st == CHECKPOINT:
+                self.saved[int(state[0]) // self.cap] = (self.R.copy(), self.P.copy())
+            elif st != PROGRESS:
+                return int(state[0])
+
+    def replay(self, b: int, t0: int, t1: int) -> None:
+        self.R, self.P = self.saved.pop(b)
+        replay(self.indptr, self.indices, self.data, self.seed, self.P, self.AP, self.R, self.Rb,
+                         self.rec.sa, self.rec.sb, t0, t1)
+        self.replayed += t1 - t0 - 1
