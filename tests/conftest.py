@@ -133,7 +133,14 @@ REQUIRE_BPY = os.environ.get("SHAPEFLOW_REQUIRE_BPY", "") == "1"
 
 def pytest_sessionstart(session):
     import importlib.util
+    import signal
 
+    # a suite started in the background by a non-interactive shell (a CI script's `cmd &`, nohup)
+    # inherits SIGINT ignored, and so would every process the tests start: the tests that press
+    # Ctrl-C on a shapeflow process would wait for an exit that never comes. The processes start
+    # as from a terminal instead (an ignored SIGINT stays ignored across exec; a handler does not).
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     if REQUIRE_BPY and importlib.util.find_spec("bpy") is None:
         raise pytest.UsageError("SHAPEFLOW_REQUIRE_BPY=1 but Blender's bpy module is not importable")
 
