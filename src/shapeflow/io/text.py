@@ -12,7 +12,8 @@ import numpy as np
 from ..errors import MeshError
 from ..mesh import Mesh
 
-__all__ = ["WHITESPACE", "COMMENT_RE", "CONTINUATION_RE", "NUMBER_RE", "fromstring", "ranges", "Text", "strip_bom",
+__all__ = ["WHITESPACE", "whitespace", "blank", "blank_comments",
+           "COMMENT_RE", "CONTINUATION_RE", "NUMBER_RE", "fromstring", "ranges", "Text", "strip_bom",
            "text_data", "build_mesh", "face_template", "write_rows", "write_faces_text"]
 
 
@@ -24,6 +25,45 @@ NUMBER_RE = {
     "f": re.compile(rb"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|nan|inf|infinity)", re.IGNORECASE),
     "i": re.compile(rb"[+-]?\d+"),
 }
+
+
+def whitespace(a: np.ndarray) -> np.ndarray:
+    """Which bytes of ``a`` (uint8) are whitespace as ``bytes.split()`` sees it: 9-13 and 32."""
+    ws = a == 32
+    ws |= np.less(a - np.uint8(9), 5)
+    return ws
+
+
+def blank(a: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
+    """Set the bytes ``a[lo[i]:hi[i]]`` to spaces, in place, for increasing ranges that neither overlap
+    nor touch (``hi[i] < lo[i + 1]``): by their indices when they are short, else by one running mask
+    (a byte each), so the memory stays linear in ``a``."""
+    lens = hi - lo
+    total = int(lens.sum())
+    if total == 0:
+        return
+    if total <= a.size // 8:
+        a[ranges(lo, lens)] = 32
+        return
+    marks = np.zeros(a.size + 1, dtype=np.int8)
+    marks[lo] = 1
+    marks[hi] = -1
+    inside = np.cumsum(marks[:-1], dtype=np.int8).view(bool)
+    a[inside] = 32
+
+
+def blank_comments(data: bytes) -> tuple[bytes, int]:
+    """``data`` with each ``#`` and the rest of its line turned into spaces, and where the text ends
+    without a comment on the last line (the length without it)."""
+    a = np.frombuffer(data, dtype=np.uint8).copy()
+    h = np.flatnonzero(a == 35)
+    nl = np.flatnonzero(a == 10)
+    j = np.searchsorted(nl, h)
+    e = np.append(nl, a.size)[j]
+    first = np.ones(h.size, dtype=bool)          # the first '#' of each line
+    np.not_equal(e[1:], e[:-1], out=first[1:])
+    blank(a, h[first], e[first])
+    return a.tobytes(), int(h[first][-1]) if e[-1] == a.size else a.size
 
 
 def fromstring(buf: bytes, dtype) -> np.ndarray | None:
@@ -62,8 +102,9 @@ class Text:
         self.line_offset = line_offset
         if b"\r" in data:
             data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+        self._text_end = None     # the text's end without a comment on its last line
         if comments and b"#" in data:
-            data = COMMENT_RE.sub(b"", data)  # keeps the newlines, so line numbers
+            data, self._text_end = blank_comments(data)  # keeps the newlines, so line numbers
         joined = None
         if continuations and b"\\" in data:
             joined = np.array([m.end() - 1 for m in CONTINUATION_RE.finditer(data)], dtype=np.int64)
@@ -72,17 +113,34 @@ class Text:
                 data = CONTINUATION_RE.sub(lambda m: b" " + m.group()[1:], data)
         self.data = data
         a = np.frombuffer(data, dtype=np.uint8)
-        edge = np.diff(WHITESPACE[a].view(np.int8), prepend=np.int8(1), append=np.int8(1))
-        self.start = np.flatnonzero(edge == -1)
-        self.end = np.flatnonzero(edge == 1)
-        nl = np.flatnonzero(a == 10)
+        ws = whitespace(a)
+        # a token starts where whitespace (or the file's start) is followed by another byte, ends where
+        # another byte is followed by whitespace (or the file's end)
+        first = np.empty(a.size, dtype=bool)
+        first[:1] = ~ws[:1]
+        np.greater(ws[:-1], ws[1:], out=first[1:])
+        last = np.empty(a.size + 1, dtype=bool)
+        last[:1] = False
+        np.less(ws[:-1], ws[1:], out=last[1:-1])
+        last[-1] = a.size > 0 and not ws[-1]
+        self.end = np.flatnonzero(last)
+        del last
+        newline = a == 10
         if joined is not None and joined.size:
-            nl = np.setdiff1d(nl, joined, assume_unique=True)
-        line = np.searchsorted(nl, self.start)
-        new = np.ones(line.size, dtype=bool)
-        np.not_equal(line[1:], line[:-1], out=new[1:])
-        self.rec_first = np.flatnonzero(new)
-        self.rec_count = np.diff(np.append(self.rec_first, line.size))
+            newline[joined] = False
+        # token starts and line breaks in one ordered pass: a token opens a record when a line break
+        # (or nothing) comes before it
+        first |= newline
+        events = np.flatnonzero(first)
+        del first
+        brk = newline[events]
+        del newline
+        self.start = events[~brk]
+        opens = np.empty(events.size, dtype=bool)
+        opens[:1] = True
+        opens[1:] = brk[:-1]
+        self.rec_first = np.flatnonzero(opens[~brk])
+        self.rec_count = np.diff(np.append(self.rec_first, self.start.size))
         self._padded = None
 
     @property
@@ -94,7 +152,7 @@ class Text:
         return self.line_offset + self.data.count(b"\n", 0, int(self.start[int(tok)])) + 1
 
     def last_lineno(self) -> int:
-        d = self.data
+        d = self.data if self._text_end is None else self.data[:self._text_end]
         return self.line_offset + d.count(b"\n") + (0 if d.endswith(b"\n") or not d else 1)
 
     def token(self, tok, end=None) -> str:
