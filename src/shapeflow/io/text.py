@@ -12,7 +12,7 @@ import numpy as np
 from ..errors import MeshError
 from ..mesh import Mesh
 
-__all__ = ["WHITESPACE", "whitespace", "blank", "blank_comments",
+__all__ = ["WHITESPACE", "whitespace", "blank", "hashes", "blank_comments",
            "COMMENT_RE", "CONTINUATION_RE", "NUMBER_RE", "fromstring", "ranges", "Text", "strip_bom",
            "text_data", "build_mesh", "face_template", "write_rows", "write_faces_text"]
 
@@ -52,16 +52,25 @@ def blank(a: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
     a[inside] = 32
 
 
+def hashes(data: bytes) -> tuple[np.ndarray, np.ndarray]:
+    """The positions of the ``#`` bytes of ``data`` (which has one), and those of the newlines from
+    the first ``#`` line to the last, ending with the end of the last ``#`` line (its newline, or the
+    file's end): the text before and after is not scanned."""
+    lo = data.rfind(b"\n", 0, data.find(b"#")) + 1
+    hi = data.find(b"\n", data.rfind(b"#"))
+    hi = len(data) if hi < 0 else hi
+    a = np.frombuffer(data, dtype=np.uint8)[lo:hi]
+    return np.flatnonzero(a == 35) + lo, np.append(np.flatnonzero(a == 10) + lo, hi)
+
+
 def blank_comments(data: bytes) -> tuple[bytes, int]:
     """``data`` with each ``#`` and the rest of its line turned into spaces, and where the text ends
     without a comment on the last line (the length without it)."""
-    a = np.frombuffer(data, dtype=np.uint8).copy()
-    h = np.flatnonzero(a == 35)
-    nl = np.flatnonzero(a == 10)
-    j = np.searchsorted(nl, h)
-    e = np.append(nl, a.size)[j]
+    h, nl = hashes(data)
+    e = nl[np.searchsorted(nl, h)]
     first = np.ones(h.size, dtype=bool)          # the first '#' of each line
     np.not_equal(e[1:], e[:-1], out=first[1:])
+    a = np.frombuffer(data, dtype=np.uint8).copy()
     blank(a, h[first], e[first])
     return a.tobytes(), int(h[first][-1]) if e[-1] == a.size else a.size
 
@@ -193,6 +202,39 @@ class Text:
         if out is None or out.size != n:
             self._raise_bad_number(toks, ends, dtype, what, starts)
         return out
+
+    def record_span(self, recs: np.ndarray) -> tuple[np.ndarray, int]:
+        """A copy of the bytes from the first to the last token of records ``recs`` (increasing,
+        not empty), and a space, in which only the tokens after each record's first remain: first
+        tokens and the records in between are spaces; and the offset of its first byte in ``data``."""
+        recs = np.asarray(recs, dtype=np.int64)
+        r0, r1 = int(recs[0]), int(recs[-1])
+        lo = int(self.start[self.rec_first[r0]])
+        hi = int(self.end[self.rec_first[r1] + self.rec_count[r1] - 1])
+        w = np.empty(hi - lo + 1, dtype=np.uint8)   # and a space: NumPy's parser reads a number to its end
+        w[:-1] = np.frombuffer(self.data, dtype=np.uint8)[lo:hi]
+        w[-1] = 32
+        every = np.arange(r0, r1 + 1)
+        member = np.zeros(every.size, dtype=bool)
+        member[recs - r0] = True
+        head = self.rec_first[every]
+        # a member loses its first token; another record everything up to the byte before the next
+        # record's first token (whitespace: the ranges stay apart)
+        nxt = self.rec_first[np.minimum(every + 1, self.n_records - 1)]
+        stop = np.where(member, self.end[head], self.start[nxt] - 1)
+        blank(w, self.start[head] - lo, stop - lo)
+        return w, lo
+
+    def record_values(self, recs: np.ndarray, dtype) -> np.ndarray | None:
+        """The numbers of the tokens after the first of each of records ``recs`` (increasing), in
+        order, read in one call (:meth:`record_span`); None when one is not a number of ``dtype``
+        (:meth:`parse` then names it)."""
+        recs = np.asarray(recs, dtype=np.int64)
+        n = int((self.rec_count[recs] - 1).sum())
+        if n == 0:
+            return np.zeros(0, dtype=dtype)
+        out = fromstring(self.record_span(recs)[0], dtype)
+        return out if out is not None and out.size == n else None
 
     def _raise_bad_number(self, toks, ends, dtype, what, starts=None):
         pattern = NUMBER_RE["f" if dtype.kind == "f" else "i"]
