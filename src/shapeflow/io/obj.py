@@ -49,7 +49,7 @@ def _tag_keys(a: np.ndarray, s: np.ndarray, tlen: np.ndarray) -> np.ndarray:
     """A number per record from its first token's length and first two bytes (see :func:`_tag`)."""
     key = np.minimum(tlen, 255).astype(np.int32) << 16
     key |= a[s].astype(np.int32)
-    key |= np.where(tlen > 1, a[s + 1], 0).astype(np.int32) << 8
+    key |= np.where(tlen > 1, a[np.minimum(s + 1, a.size - 1)], 0).astype(np.int32) << 8
     return key
 
 
@@ -71,10 +71,10 @@ def _texts(txt: Text, recs: np.ndarray) -> list[str]:
     has = rc > 1
     lo = np.where(has, txt.start[np.where(has, rf + 1, rf)], 0)
     hi = np.where(has, txt.end[rf + rc - 1], 0)
-    a = np.frombuffer(txt.data + b"\n", dtype=np.uint8)
-    idx = ranges(lo, hi - lo + 1)
-    idx[np.cumsum(hi - lo + 1) - 1] = a.size - 1           # a newline after each
-    joined = a[idx].tobytes().decode("utf-8", errors="replace")
+    a = np.frombuffer(txt.data, dtype=np.uint8)
+    picked = a[np.minimum(ranges(lo, hi - lo + 1), a.size - 1)]
+    picked[np.cumsum(hi - lo + 1) - 1] = 10                 # a newline after each
+    joined = picked.tobytes().decode("utf-8", errors="replace")
     return joined.split("\n")[:-1]
 
 
@@ -83,7 +83,7 @@ def _hash_lines(data: bytes) -> bytes:
     what it finds in ``data``: it matches within a line)."""
     if b"#" not in data:
         return b""
-    h, nl = hashes(data)
+    h, nl, _, _ = hashes(data)
     line = np.unique(np.searchsorted(nl, h))
     lo = np.where(line > 0, nl[np.maximum(line - 1, 0)] + 1, data.rfind(b"\n", 0, int(h[0])) + 1)
     lens = nl[line] + 1 - lo
@@ -203,7 +203,7 @@ def read_obj(data: bytes, name: str) -> Mesh:
     if txt.n_records == 0:
         raise MeshError(f"{name}: no vertices (the file has only comments or blank lines)")
     rf = txt.rec_first
-    a = np.frombuffer(txt.data + b"        ", dtype=np.uint8)
+    a = np.frombuffer(txt.data, dtype=np.uint8)
     s = txt.start[rf]
     tlen = txt.end[rf] - s
     key = _tag_keys(a, s, tlen)
@@ -258,9 +258,9 @@ def _check_tags(txt: Text, a: np.ndarray, other: np.ndarray, so: np.ndarray, lo:
     first_ok = TAG_START[a[so]]
     tag_ok = first_ok & (np.add.reduceat(~ok, np.cumsum(lo) - lo) == 0 if chars.size else first_ok)
     # an element tag glued to its first number ('f1 2 3', 'v0.5 1 2') is a typo, not a new tag
-    c1o = a[so + 1]
+    c1o = _byte(a, so + 1)
     k = np.where((a[so] == ord("v")) & np.isin(c1o, np.frombuffer(b"tnp", np.uint8)) & (lo > 2), 2, 1)
-    glued = np.isin(a[so], np.frombuffer(b"vflp", np.uint8)) & (lo > k) & NUMBER_START[a[so + k]]
+    glued = np.isin(a[so], np.frombuffer(b"vflp", np.uint8)) & (lo > k) & NUMBER_START[_byte(a, so + k)]
     bad = np.flatnonzero(~tag_ok | glued)
     if bad.size:
         r = int(other[bad[0]])
@@ -272,6 +272,11 @@ def _check_tags(txt: Text, a: np.ndarray, other: np.ndarray, so: np.ndarray, lo:
     tags = [keys[i:j] for i, j in zip(np.concatenate([[0], cuts[:-1]]).tolist(), cuts.tolist())]
     names, counts = np.unique(np.array(tags, dtype=object), return_counts=True)
     return {str(t): int(c) for t, c in zip(names, counts)}
+
+
+def _byte(a: np.ndarray, i: np.ndarray) -> np.ndarray:
+    """The bytes ``a[i]``, a space where ``i`` is beyond the end."""
+    return np.where(i < a.size, a[np.minimum(i, a.size - 1)], 32)
 
 
 def _vertices(txt: Text, vrec: np.ndarray, name: str):
@@ -338,7 +343,7 @@ def _labels(txt: Text, recs: np.ndarray, frec: np.ndarray) -> Labels:
 def _slashes(txt: Text, a: np.ndarray, ftok: np.ndarray):
     """Byte positions of the first and second '/' in each corner token (its end when missing)."""
     ts, te = txt.start[ftok], txt.end[ftok]
-    slashes = np.append(np.flatnonzero(a[:-8] == ord("/")), a.size)
+    slashes = np.append(np.flatnonzero(a == ord("/")), a.size)
     j = np.searchsorted(slashes, ts)
     s1 = np.minimum(slashes[j], te)
     s2 = np.minimum(slashes[np.minimum(j + 1, slashes.size - 1)], te)

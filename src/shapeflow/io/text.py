@@ -29,8 +29,9 @@ NUMBER_RE = {
 
 def whitespace(a: np.ndarray) -> np.ndarray:
     """Which bytes of ``a`` (uint8) are whitespace as ``bytes.split()`` sees it: 9-13 and 32."""
-    ws = a == 32
-    ws |= np.less(a - np.uint8(9), 5)
+    ws = np.subtract(a, np.uint8(9)).view(bool)     # (uint8: wraps around below 9)
+    np.less(ws.view(np.uint8), 5, out=ws)
+    ws |= a == 32
     return ws
 
 
@@ -52,27 +53,29 @@ def blank(a: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
     a[inside] = 32
 
 
-def hashes(data: bytes) -> tuple[np.ndarray, np.ndarray]:
-    """The positions of the ``#`` bytes of ``data`` (which has one), and those of the newlines from
-    the first ``#`` line to the last, ending with the end of the last ``#`` line (its newline, or the
-    file's end): the text before and after is not scanned."""
+def hashes(data: bytes) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """The positions of the ``#`` bytes of ``data`` (which has one), those of the newlines from the
+    first ``#`` line to the last, ending with the end of the last ``#`` line (its newline, or the
+    file's end), and where that stretch of lines begins and ends: the text before and after is not
+    scanned."""
     lo = data.rfind(b"\n", 0, data.find(b"#")) + 1
     hi = data.find(b"\n", data.rfind(b"#"))
     hi = len(data) if hi < 0 else hi
     a = np.frombuffer(data, dtype=np.uint8)[lo:hi]
-    return np.flatnonzero(a == 35) + lo, np.append(np.flatnonzero(a == 10) + lo, hi)
+    return np.flatnonzero(a == 35) + lo, np.append(np.flatnonzero(a == 10) + lo, hi), lo, hi
 
 
 def blank_comments(data: bytes) -> tuple[bytes, int]:
     """``data`` with each ``#`` and the rest of its line turned into spaces, and where the text ends
     without a comment on the last line (the length without it)."""
-    h, nl = hashes(data)
+    h, nl, lo, hi = hashes(data)
     e = nl[np.searchsorted(nl, h)]
     first = np.ones(h.size, dtype=bool)          # the first '#' of each line
     np.not_equal(e[1:], e[:-1], out=first[1:])
-    a = np.frombuffer(data, dtype=np.uint8).copy()
-    blank(a, h[first], e[first])
-    return a.tobytes(), int(h[first][-1]) if e[-1] == a.size else a.size
+    a = np.frombuffer(data, dtype=np.uint8)[lo:hi].copy()
+    blank(a, h[first] - lo, e[first] - lo)
+    view = memoryview(data)
+    return b"".join((view[:lo], a, view[hi:])), int(h[first][-1]) if e[-1] == len(data) else len(data)
 
 
 def fromstring(buf: bytes, dtype) -> np.ndarray | None:
@@ -123,27 +126,26 @@ class Text:
         self.data = data
         a = np.frombuffer(data, dtype=np.uint8)
         ws = whitespace(a)
-        # a token starts where whitespace (or the file's start) is followed by another byte, ends where
-        # another byte is followed by whitespace (or the file's end)
-        first = np.empty(a.size, dtype=bool)
+        # a token ends where another byte is followed by whitespace (or the file's end), starts where
+        # whitespace (or the file's start) is followed by another byte; one buffer for both
+        mark = np.empty(a.size + 1, dtype=bool)
+        mark[:1] = False
+        np.less(ws[:-1], ws[1:], out=mark[1:-1])
+        mark[-1] = a.size > 0 and not ws[-1]
+        self.end = np.flatnonzero(mark)
+        first = mark[:-1]
         first[:1] = ~ws[:1]
         np.greater(ws[:-1], ws[1:], out=first[1:])
-        last = np.empty(a.size + 1, dtype=bool)
-        last[:1] = False
-        np.less(ws[:-1], ws[1:], out=last[1:-1])
-        last[-1] = a.size > 0 and not ws[-1]
-        self.end = np.flatnonzero(last)
-        del last
-        newline = a == 10
+        newline = np.equal(a, 10, out=ws)
         if joined is not None and joined.size:
             newline[joined] = False
         # token starts and line breaks in one ordered pass: a token opens a record when a line break
         # (or nothing) comes before it
         first |= newline
         events = np.flatnonzero(first)
-        del first
+        del first, mark
         brk = newline[events]
-        del newline
+        del newline, ws
         self.start = events[~brk]
         opens = np.empty(events.size, dtype=bool)
         opens[:1] = True
@@ -255,7 +257,7 @@ def strip_bom(data: bytes) -> bytes:
 def text_data(data: bytes, name: str, kind: str) -> bytes:
     """Checks common to text formats: not empty, not binary; strips a BOM."""
     data = strip_bom(data)
-    if not data.strip():
+    if not data or data.isspace():     # (no stripped copy of a large file)
         raise MeshError(f"{name}: empty file")
     nul = data.find(b"\x00")
     if nul >= 0:
