@@ -433,14 +433,20 @@ def _faces(txt: Text, a: np.ndarray, frec: np.ndarray, vrec: np.ndarray, vtrec: 
     if small.size:
         i = int(small[0])
         raise txt.error(ffirst[i], f"face has {int(sizes[i])} corners; a face needs at least 3")
-    ftok = ranges(ffirst + 1, sizes)
-    none = np.full(ftok.size, -1, np.int64)
-    if b"/" not in txt.data or not ftok.size:
+    ends = np.cumsum(sizes)
+
+    def tok(c: int) -> int:         # the token of corner c (for messages)
+        f = int(np.searchsorted(ends, c, "right"))
+        return int(ffirst[f] + 1 + c - (ends[f] - sizes[f]))
+
+    n_corners = int(ends[-1]) if ends.size else 0
+    if b"/" not in txt.data or not n_corners:
         raw = txt.record_values(frec, np.int64)
         if raw is None:
-            raw = txt.parse(ftok, np.int64, "vertex index")
-        vt_idx = vn_idx = none
+            raw = txt.parse(ranges(ffirst + 1, sizes), np.int64, "vertex index")
+        vt_idx = vn_idx = np.full(n_corners, -1, np.int64)
     else:
+        ftok = ranges(ffirst + 1, sizes)
         fields = _fields(txt, frec, ftok)
         if fields is None:        # some corner is not a/b/c with whole numbers: read them one by one
             fields = _fields_each(txt, a, ftok)
@@ -450,7 +456,7 @@ def _faces(txt: Text, a: np.ndarray, frec: np.ndarray, vrec: np.ndarray, vtrec: 
         vn_idx = _corner_index(txt, ftok, vn, lambda: before(vnrec), vnrec.size, "normal index")
     zero = np.flatnonzero(raw == 0)
     if zero.size:
-        raise txt.error(ftok[int(zero[0])], "vertex index 0 (OBJ indices start at 1)")
+        raise txt.error(tok(int(zero[0])), "vertex index 0 (OBJ indices start at 1)")
     idx = raw - 1
     neg = raw < 0
     if neg.any():
@@ -459,12 +465,12 @@ def _faces(txt: Text, a: np.ndarray, frec: np.ndarray, vrec: np.ndarray, vtrec: 
         bad = np.flatnonzero(neg & (idx < 0))
         if bad.size:
             c = int(bad[0])
-            raise txt.error(ftok[c], f"relative vertex index {int(raw[c])} reaches before the first vertex "
+            raise txt.error(tok(c), f"relative vertex index {int(raw[c])} reaches before the first vertex "
                             f"(only {int(defined[c])} defined before this line)")
     bad = np.flatnonzero(idx >= n)
     if bad.size:
         c = int(bad[0])
-        raise txt.error(ftok[c], f"vertex index {int(raw[c])} out of range: the file has {n} vertices")
+        raise txt.error(tok(c), f"vertex index {int(raw[c])} out of range: the file has {n} vertices")
     return sizes, idx, vt_idx, vn_idx
 
 
