@@ -28,7 +28,7 @@ from ..mesh import Mesh
 from ..mesh.attributes import Indexed, Labels
 from .atomic import writing_in
 from .ply import front_comment, front_from_comments
-from .text import Text, build_mesh, ranges, text_data, write_rows
+from .text import Text, build_mesh, fromstring, hashes, ranges, text_data, write_rows
 
 __all__ = ["read_obj", "write_obj", "FACE_TAGS", "crease_tags", "is_crease_tag"]
 
@@ -45,25 +45,51 @@ _COMMENT = re.compile(rb"^[ \t]*#[ \t]?([^\r\n]*)", re.MULTILINE)
 _OWN_HEADER = "shapeflow:"
 
 
-def _tag(a: np.ndarray, s: np.ndarray, tlen: np.ndarray, word: bytes) -> np.ndarray:
-    """Records whose first token is ``word``."""
-    hit = tlen == len(word)
-    for j, ch in enumerate(word):
-        hit &= a[s + j] == ch
+def _tag_keys(a: np.ndarray, s: np.ndarray, tlen: np.ndarray) -> np.ndarray:
+    """A number per record from its first token's length and first two bytes (see :func:`_tag`)."""
+    key = np.minimum(tlen, 255).astype(np.int32) << 16
+    key |= a[s].astype(np.int32)
+    key |= np.where(tlen > 1, a[np.minimum(s + 1, a.size - 1)], 0).astype(np.int32) << 8
+    return key
+
+
+def _tag(a: np.ndarray, s: np.ndarray, tlen: np.ndarray, word: bytes, key: np.ndarray) -> np.ndarray:
+    """Records whose first token is ``word`` (``key``: :func:`_tag_keys`)."""
+    hit = key == (len(word) << 16 | word[0] | (word[1] << 8 if len(word) > 1 else 0))
+    if len(word) > 2:
+        cand = np.flatnonzero(hit)
+        for j in range(2, len(word)):
+            hit[cand] &= a[s[cand] + j] == word[j]
     return hit
 
 
 def _texts(txt: Text, recs: np.ndarray) -> list[str]:
     """What follows the tag on each record (one string per record, '' for none)."""
+    if recs.size == 0:
+        return []
     rf, rc = txt.rec_first[recs], txt.rec_count[recs]
     has = rc > 1
     lo = np.where(has, txt.start[np.where(has, rf + 1, rf)], 0)
     hi = np.where(has, txt.end[rf + rc - 1], 0)
-    a = np.frombuffer(txt.data + b"\n", dtype=np.uint8)
-    idx = ranges(lo, hi - lo + 1)
-    idx[np.cumsum(hi - lo + 1) - 1] = a.size - 1           # a newline after each
-    joined = a[idx].tobytes().decode("utf-8", errors="replace")
+    a = np.frombuffer(txt.data, dtype=np.uint8)
+    picked = a[np.minimum(ranges(lo, hi - lo + 1), a.size - 1)]
+    picked[np.cumsum(hi - lo + 1) - 1] = 10                 # a newline after each
+    joined = picked.tobytes().decode("utf-8", errors="replace")
     return joined.split("\n")[:-1]
+
+
+def _hash_lines(data: bytes) -> bytes:
+    """The lines of ``data`` that hold a '#', each ending in a newline (``_COMMENT`` finds in them
+    what it finds in ``data``: it matches within a line)."""
+    if b"#" not in data:
+        return b""
+    h, nl, _, _ = hashes(data)
+    line = np.unique(np.searchsorted(nl, h))
+    lo = np.where(line > 0, nl[np.maximum(line - 1, 0)] + 1, data.rfind(b"\n", 0, int(h[0])) + 1)
+    lens = nl[line] + 1 - lo
+    out = np.frombuffer(data, dtype=np.uint8)[np.minimum(ranges(lo, lens), len(data) - 1)]
+    out[np.cumsum(lens) - 1] = 10
+    return out.tobytes()
 
 
 def _vertex_elements(txt: Text, a: np.ndarray, recs: np.ndarray, n_v: int, n_vt: int, n_f: int) -> tuple[list, dict]:
@@ -172,18 +198,19 @@ def _check_tag_line(txt: Text, tok: int, words: list, n_v: int, n_f: int) -> Non
 
 def read_obj(data: bytes, name: str) -> Mesh:
     data = text_data(data, name, "OBJ")
-    comments = [c.decode("utf-8", "replace").rstrip() for c in _COMMENT.findall(data)]
+    comments = [c.decode("utf-8", "replace").rstrip() for c in _COMMENT.findall(_hash_lines(data))]
     txt = Text(data, name, comments=True, continuations=True)
     if txt.n_records == 0:
         raise MeshError(f"{name}: no vertices (the file has only comments or blank lines)")
     rf = txt.rec_first
-    a = np.frombuffer(txt.data + b"        ", dtype=np.uint8)
+    a = np.frombuffer(txt.data, dtype=np.uint8)
     s = txt.start[rf]
     tlen = txt.end[rf] - s
-    is_v, is_vt, is_vn = _tag(a, s, tlen, b"v"), _tag(a, s, tlen, b"vt"), _tag(a, s, tlen, b"vn")
-    is_f = _tag(a, s, tlen, b"f") | _tag(a, s, tlen, b"fo")
-    is_state = {tag: _tag(a, s, tlen, tag) for tag in (*FACE_TAGS, b"mtllib")}
-    is_elem = _tag(a, s, tlen, b"l") | _tag(a, s, tlen, b"p") | _tag(a, s, tlen, b"t")
+    key = _tag_keys(a, s, tlen)
+    is_v, is_vt, is_vn = (_tag(a, s, tlen, w, key) for w in (b"v", b"vt", b"vn"))
+    is_f = _tag(a, s, tlen, b"f", key) | _tag(a, s, tlen, b"fo", key)
+    is_state = {tag: _tag(a, s, tlen, tag, key) for tag in (*FACE_TAGS, b"mtllib")}
+    is_elem = _tag(a, s, tlen, b"l", key) | _tag(a, s, tlen, b"p", key) | _tag(a, s, tlen, b"t", key)
     known = is_v | is_vt | is_vn | is_f | is_elem | np.logical_or.reduce(list(is_state.values()))
     other = np.flatnonzero(~known)
     dropped = _check_tags(txt, a, other, s[other], tlen[other]) if other.size else {}
@@ -231,9 +258,9 @@ def _check_tags(txt: Text, a: np.ndarray, other: np.ndarray, so: np.ndarray, lo:
     first_ok = TAG_START[a[so]]
     tag_ok = first_ok & (np.add.reduceat(~ok, np.cumsum(lo) - lo) == 0 if chars.size else first_ok)
     # an element tag glued to its first number ('f1 2 3', 'v0.5 1 2') is a typo, not a new tag
-    c1o = a[so + 1]
+    c1o = _byte(a, so + 1)
     k = np.where((a[so] == ord("v")) & np.isin(c1o, np.frombuffer(b"tnp", np.uint8)) & (lo > 2), 2, 1)
-    glued = np.isin(a[so], np.frombuffer(b"vflp", np.uint8)) & (lo > k) & NUMBER_START[a[so + k]]
+    glued = np.isin(a[so], np.frombuffer(b"vflp", np.uint8)) & (lo > k) & NUMBER_START[_byte(a, so + k)]
     bad = np.flatnonzero(~tag_ok | glued)
     if bad.size:
         r = int(other[bad[0]])
@@ -245,6 +272,11 @@ def _check_tags(txt: Text, a: np.ndarray, other: np.ndarray, so: np.ndarray, lo:
     tags = [keys[i:j] for i, j in zip(np.concatenate([[0], cuts[:-1]]).tolist(), cuts.tolist())]
     names, counts = np.unique(np.array(tags, dtype=object), return_counts=True)
     return {str(t): int(c) for t, c in zip(names, counts)}
+
+
+def _byte(a: np.ndarray, i: np.ndarray) -> np.ndarray:
+    """The bytes ``a[i]``, a space where ``i`` is beyond the end."""
+    return np.where(i < a.size, a[np.minimum(i, a.size - 1)], 32)
 
 
 def _vertices(txt: Text, vrec: np.ndarray, name: str):
@@ -259,12 +291,20 @@ def _vertices(txt: Text, vrec: np.ndarray, name: str):
         if bad.size:
             i = int(bad[0])
             raise txt.error(vfirst[i], f"vertex line has {int(nval[i])} values; expected x y z [w] or x y z r g b")
-    vtok = (vfirst[:, None] + np.arange(1, 4)).reshape(-1)  # x y z, after the tag
-    vertices = txt.parse(vtok, np.float64, "vertex coordinate").reshape(n, 3)
+    vals = txt.record_values(vrec, np.float64)     # every value of every line, in one call
+    off = None if vals is None else np.cumsum(nval) - nval
+    if vals is None:       # some value is not a number: read x y z (and r g b) alone, naming a bad one
+        vtok = (vfirst[:, None] + np.arange(1, 4)).reshape(-1)  # x y z, after the tag
+        vertices = txt.parse(vtok, np.float64, "vertex coordinate").reshape(n, 3)
+    elif vals.size == 3 * n:
+        vertices = vals.reshape(n, 3)
+    else:
+        vertices = vals[off[:, None] + np.arange(3)]
     attributes = {}
     if (nval >= 6).all():
         ctok = (vfirst[:, None] + np.arange(4, 7)).reshape(-1)
-        attributes["color"] = txt.parse(ctok, np.float64, "vertex colour").reshape(n, 3)
+        attributes["color"] = (txt.parse(ctok, np.float64, "vertex colour").reshape(n, 3) if vals is None
+                               else vals[off[:, None] + np.arange(3, 6)])
     elif (nval >= 6).any():
         warnings.warn(DataLossWarning(f"{name}: only some 'v' lines have colours; colours are not kept"),
                       stacklevel=4)
@@ -281,7 +321,9 @@ def _table(txt: Text, recs: np.ndarray, allowed: tuple, what: str) -> np.ndarray
         raise txt.error(first[i], f"{what} line has {int(nval[i])} values; expected {' or '.join(map(str, allowed))}")
     k = int(nval.max())
     out = np.zeros((recs.size, k))
-    vals = txt.parse(ranges(first + 1, nval), np.float64, what)
+    vals = txt.record_values(recs, np.float64)
+    if vals is None:
+        vals = txt.parse(ranges(first + 1, nval), np.float64, what)
     rows = np.repeat(np.arange(recs.size), nval)
     cols = np.arange(vals.size) - np.repeat(np.cumsum(nval) - nval, nval)
     out[rows, cols] = vals
@@ -301,7 +343,7 @@ def _labels(txt: Text, recs: np.ndarray, frec: np.ndarray) -> Labels:
 def _slashes(txt: Text, a: np.ndarray, ftok: np.ndarray):
     """Byte positions of the first and second '/' in each corner token (its end when missing)."""
     ts, te = txt.start[ftok], txt.end[ftok]
-    slashes = np.append(np.flatnonzero(a[:-8] == ord("/")), a.size)
+    slashes = np.append(np.flatnonzero(a == ord("/")), a.size)
     j = np.searchsorted(slashes, ts)
     s1 = np.minimum(slashes[j], te)
     s2 = np.minimum(slashes[np.minimum(j + 1, slashes.size - 1)], te)
@@ -309,17 +351,21 @@ def _slashes(txt: Text, a: np.ndarray, ftok: np.ndarray):
     return ts, te, s1, s2
 
 
-def _corner_index(txt: Text, ftok, lo, hi, count_before, n_table, what: str):
-    """1-based (or negative, relative) indices in byte ranges [lo, hi) -> 0-based; -1 where empty."""
+def _corner_index(txt: Text, ftok, field: tuple, count_before, n_table, what: str):
+    """1-based (or negative, relative) indices of the corners that have the field -> 0-based; -1 for
+    the other corners.  ``field``: which corners have one, and how to read them;
+    ``count_before()``: the table's lines before each corner's face line."""
     out = np.full(ftok.size, -1, np.int64)
-    has = hi > lo
+    has, read = field
     if not has.any():
         return out
-    raw = txt.parse(ftok[has], np.int64, what, ends=hi[has], starts=lo[has])
+    raw = read()
     zero = np.flatnonzero(raw == 0)
     if zero.size:
         raise txt.error(ftok[has][int(zero[0])], f"{what} 0 (OBJ indices start at 1)")
-    val = np.where(raw < 0, count_before[has] + raw, raw - 1)
+    val = raw - 1
+    if (raw < 0).any():
+        val = np.where(raw < 0, count_before()[has] + raw, val)
     bad = np.flatnonzero((val < 0) | (val >= n_table))
     if bad.size:
         c = int(bad[0])
@@ -327,6 +373,54 @@ def _corner_index(txt: Text, ftok, lo, hi, count_before, n_table, what: str):
                         if raw[c] < 0 else f"{what} {int(raw[c])} out of range: the file has {n_table}")
     out[has] = val
     return out
+
+
+def _fields_each(txt: Text, a: np.ndarray, ftok: np.ndarray) -> tuple:
+    """The vertex numbers of face corners ``v``, ``v/t``, ``v//n``, ``v/t/n`` (``v/`` and ``v/t/``
+    too), and for the texture and normal fields which corners have one and how to read them; each
+    field read on its own, so a MeshError names the first bad one."""
+    ts, te, s1, s2 = _slashes(txt, a, ftok)
+    empty = np.flatnonzero(s1 == ts)
+    if empty.size:
+        t = ftok[int(empty[0])]
+        raise txt.error(t, f"face corner {txt.token(t)} has no vertex index")
+    raw = txt.parse(ftok, np.int64, "vertex index", ends=s1)
+
+    def field(lo, hi, what):
+        has = hi > lo
+        return has, lambda: txt.parse(ftok[has], np.int64, what, ends=hi[has], starts=lo[has])
+
+    return (raw, field(np.minimum(s1 + 1, te), s2, "texture coordinate index"),
+            field(np.minimum(s2 + 1, te), te, "normal index"))
+
+
+def _fields(txt: Text, frec: np.ndarray, ftok: np.ndarray) -> tuple | None:
+    """What :func:`_fields_each` returns, from one read of all the numbers of the face lines;
+    None when a corner has more than two slashes, starts with one, or a field is not a whole
+    number (:func:`_fields_each` then names it)."""
+    w, base = txt.record_span(frec)
+    ts, te = txt.start[ftok] - base, txt.end[ftok] - base
+    slash = w == 47
+    if slash[ts].any():
+        return None
+    slash[ts] = True               # corners' first bytes and their slashes, in order
+    at = np.flatnonzero(slash)
+    del slash
+    is_slash = w[at] == 47
+    w[at[is_slash]] = 32
+    k = np.flatnonzero(~is_slash)  # where each corner starts in ``at``
+    n_slash = np.diff(np.append(k, at.size)) - 1
+    if n_slash.size and n_slash.max() > 2:
+        return None
+    s1 = np.where(n_slash >= 1, at[np.minimum(k + 1, at.size - 1)], te)
+    s2 = np.where(n_slash >= 2, at[np.minimum(k + 2, at.size - 1)], te)
+    has_vt, has_vn = s2 > s1 + 1, te > s2 + 1    # fields that are not empty
+    vals = fromstring(w, np.int64)
+    if vals is None or vals.size != ftok.size + int(has_vt.sum()) + int(has_vn.sum()):
+        return None
+    first = np.cumsum(1 + has_vt + has_vn) - (1 + has_vt + has_vn)
+    vt, vn = (first + 1)[has_vt], (first + 1 + has_vt)[has_vn]
+    return vals[first], (has_vt, lambda: vals[vt]), (has_vn, lambda: vals[vn])
 
 
 def _faces(txt: Text, a: np.ndarray, frec: np.ndarray, vrec: np.ndarray, vtrec: np.ndarray, vnrec: np.ndarray):
@@ -339,26 +433,30 @@ def _faces(txt: Text, a: np.ndarray, frec: np.ndarray, vrec: np.ndarray, vtrec: 
     if small.size:
         i = int(small[0])
         raise txt.error(ffirst[i], f"face has {int(sizes[i])} corners; a face needs at least 3")
-    ftok = ranges(ffirst + 1, sizes)
-    none = np.full(ftok.size, -1, np.int64)
-    if b"/" not in txt.data or not ftok.size:
-        raw = txt.parse(ftok, np.int64, "vertex index")
-        vt_idx = vn_idx = none
+    ends = np.cumsum(sizes)
+
+    def tok(c: int) -> int:         # the token of corner c (for messages)
+        f = int(np.searchsorted(ends, c, "right"))
+        return int(ffirst[f] + 1 + c - (ends[f] - sizes[f]))
+
+    n_corners = int(ends[-1]) if ends.size else 0
+    if b"/" not in txt.data or not n_corners:
+        raw = txt.record_values(frec, np.int64)
+        if raw is None:
+            raw = txt.parse(ranges(ffirst + 1, sizes), np.int64, "vertex index")
+        vt_idx = vn_idx = np.full(n_corners, -1, np.int64)
     else:
-        ts, te, s1, s2 = _slashes(txt, a, ftok)
-        empty = np.flatnonzero(s1 == ts)
-        if empty.size:
-            t = ftok[int(empty[0])]
-            raise txt.error(t, f"face corner {txt.token(t)} has no vertex index")
-        raw = txt.parse(ftok, np.int64, "vertex index", ends=s1)
-        before = np.repeat(np.arange(frec.size), sizes)
-        vt_idx = _corner_index(txt, ftok, np.minimum(s1 + 1, te), s2, np.searchsorted(vtrec, frec)[before],
-                               vtrec.size, "texture coordinate index")
-        vn_idx = _corner_index(txt, ftok, np.minimum(s2 + 1, te), te, np.searchsorted(vnrec, frec)[before],
-                               vnrec.size, "normal index")
+        ftok = ranges(ffirst + 1, sizes)
+        fields = _fields(txt, frec, ftok)
+        if fields is None:        # some corner is not a/b/c with whole numbers: read them one by one
+            fields = _fields_each(txt, a, ftok)
+        raw, vt, vn = fields
+        before = lambda table: np.repeat(np.searchsorted(table, frec), sizes)  # noqa: E731
+        vt_idx = _corner_index(txt, ftok, vt, lambda: before(vtrec), vtrec.size, "texture coordinate index")
+        vn_idx = _corner_index(txt, ftok, vn, lambda: before(vnrec), vnrec.size, "normal index")
     zero = np.flatnonzero(raw == 0)
     if zero.size:
-        raise txt.error(ftok[int(zero[0])], "vertex index 0 (OBJ indices start at 1)")
+        raise txt.error(tok(int(zero[0])), "vertex index 0 (OBJ indices start at 1)")
     idx = raw - 1
     neg = raw < 0
     if neg.any():
@@ -367,12 +465,12 @@ def _faces(txt: Text, a: np.ndarray, frec: np.ndarray, vrec: np.ndarray, vtrec: 
         bad = np.flatnonzero(neg & (idx < 0))
         if bad.size:
             c = int(bad[0])
-            raise txt.error(ftok[c], f"relative vertex index {int(raw[c])} reaches before the first vertex "
+            raise txt.error(tok(c), f"relative vertex index {int(raw[c])} reaches before the first vertex "
                             f"(only {int(defined[c])} defined before this line)")
     bad = np.flatnonzero(idx >= n)
     if bad.size:
         c = int(bad[0])
-        raise txt.error(ftok[c], f"vertex index {int(raw[c])} out of range: the file has {n} vertices")
+        raise txt.error(tok(c), f"vertex index {int(raw[c])} out of range: the file has {n} vertices")
     return sizes, idx, vt_idx, vn_idx
 
 

@@ -12,7 +12,8 @@ import numpy as np
 from ..errors import MeshError
 from ..mesh import Mesh
 
-__all__ = ["WHITESPACE", "COMMENT_RE", "CONTINUATION_RE", "NUMBER_RE", "fromstring", "ranges", "Text", "strip_bom",
+__all__ = ["WHITESPACE", "whitespace", "blank", "hashes", "blank_comments",
+           "COMMENT_RE", "CONTINUATION_RE", "NUMBER_RE", "fromstring", "ranges", "Text", "strip_bom",
            "text_data", "build_mesh", "face_template", "write_rows", "write_faces_text"]
 
 
@@ -24,6 +25,57 @@ NUMBER_RE = {
     "f": re.compile(rb"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|nan|inf|infinity)", re.IGNORECASE),
     "i": re.compile(rb"[+-]?\d+"),
 }
+
+
+def whitespace(a: np.ndarray) -> np.ndarray:
+    """Which bytes of ``a`` (uint8) are whitespace as ``bytes.split()`` sees it: 9-13 and 32."""
+    ws = np.subtract(a, np.uint8(9)).view(bool)     # (uint8: wraps around below 9)
+    np.less(ws.view(np.uint8), 5, out=ws)
+    ws |= a == 32
+    return ws
+
+
+def blank(a: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
+    """Set the bytes ``a[lo[i]:hi[i]]`` to spaces, in place, for increasing ranges that neither overlap
+    nor touch (``hi[i] < lo[i + 1]``): by their indices when they are short, else by one running mask
+    (a byte each), so the memory stays linear in ``a``."""
+    lens = hi - lo
+    total = int(lens.sum())
+    if total == 0:
+        return
+    if total <= a.size // 8:
+        a[ranges(lo, lens)] = 32
+        return
+    marks = np.zeros(a.size + 1, dtype=np.int8)
+    marks[lo] = 1
+    marks[hi] = -1
+    inside = np.cumsum(marks[:-1], dtype=np.int8).view(bool)
+    a[inside] = 32
+
+
+def hashes(data: bytes) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """The positions of the ``#`` bytes of ``data`` (which has one), those of the newlines from the
+    first ``#`` line to the last, ending with the end of the last ``#`` line (its newline, or the
+    file's end), and where that stretch of lines begins and ends: the text before and after is not
+    scanned."""
+    lo = data.rfind(b"\n", 0, data.find(b"#")) + 1
+    hi = data.find(b"\n", data.rfind(b"#"))
+    hi = len(data) if hi < 0 else hi
+    a = np.frombuffer(data, dtype=np.uint8)[lo:hi]
+    return np.flatnonzero(a == 35) + lo, np.append(np.flatnonzero(a == 10) + lo, hi), lo, hi
+
+
+def blank_comments(data: bytes) -> tuple[bytes, int]:
+    """``data`` with each ``#`` and the rest of its line turned into spaces, and where the text ends
+    without a comment on the last line (the length without it)."""
+    h, nl, lo, hi = hashes(data)
+    e = nl[np.searchsorted(nl, h)]
+    first = np.ones(h.size, dtype=bool)          # the first '#' of each line
+    np.not_equal(e[1:], e[:-1], out=first[1:])
+    a = np.frombuffer(data, dtype=np.uint8)[lo:hi].copy()
+    blank(a, h[first] - lo, e[first] - lo)
+    view = memoryview(data)
+    return b"".join((view[:lo], a, view[hi:])), int(h[first][-1]) if e[-1] == len(data) else len(data)
 
 
 def fromstring(buf: bytes, dtype) -> np.ndarray | None:
@@ -62,8 +114,9 @@ class Text:
         self.line_offset = line_offset
         if b"\r" in data:
             data = data.replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+        self._text_end = None     # the text's end without a comment on its last line
         if comments and b"#" in data:
-            data = COMMENT_RE.sub(b"", data)  # keeps the newlines, so line numbers
+            data, self._text_end = blank_comments(data)  # keeps the newlines, so line numbers
         joined = None
         if continuations and b"\\" in data:
             joined = np.array([m.end() - 1 for m in CONTINUATION_RE.finditer(data)], dtype=np.int64)
@@ -72,17 +125,33 @@ class Text:
                 data = CONTINUATION_RE.sub(lambda m: b" " + m.group()[1:], data)
         self.data = data
         a = np.frombuffer(data, dtype=np.uint8)
-        edge = np.diff(WHITESPACE[a].view(np.int8), prepend=np.int8(1), append=np.int8(1))
-        self.start = np.flatnonzero(edge == -1)
-        self.end = np.flatnonzero(edge == 1)
-        nl = np.flatnonzero(a == 10)
+        ws = whitespace(a)
+        # a token ends where another byte is followed by whitespace (or the file's end), starts where
+        # whitespace (or the file's start) is followed by another byte; one buffer for both
+        mark = np.empty(a.size + 1, dtype=bool)
+        mark[:1] = False
+        np.less(ws[:-1], ws[1:], out=mark[1:-1])
+        mark[-1] = a.size > 0 and not ws[-1]
+        self.end = np.flatnonzero(mark)
+        first = mark[:-1]
+        first[:1] = ~ws[:1]
+        np.greater(ws[:-1], ws[1:], out=first[1:])
+        newline = np.equal(a, 10, out=ws)
         if joined is not None and joined.size:
-            nl = np.setdiff1d(nl, joined, assume_unique=True)
-        line = np.searchsorted(nl, self.start)
-        new = np.ones(line.size, dtype=bool)
-        np.not_equal(line[1:], line[:-1], out=new[1:])
-        self.rec_first = np.flatnonzero(new)
-        self.rec_count = np.diff(np.append(self.rec_first, line.size))
+            newline[joined] = False
+        # token starts and line breaks in one ordered pass: a token opens a record when a line break
+        # (or nothing) comes before it
+        first |= newline
+        events = np.flatnonzero(first)
+        del first, mark
+        brk = newline[events]
+        del newline, ws
+        self.start = events[~brk]
+        opens = np.empty(events.size, dtype=bool)
+        opens[:1] = True
+        opens[1:] = brk[:-1]
+        self.rec_first = np.flatnonzero(opens[~brk])
+        self.rec_count = np.diff(np.append(self.rec_first, self.start.size))
         self._padded = None
 
     @property
@@ -94,7 +163,7 @@ class Text:
         return self.line_offset + self.data.count(b"\n", 0, int(self.start[int(tok)])) + 1
 
     def last_lineno(self) -> int:
-        d = self.data
+        d = self.data if self._text_end is None else self.data[:self._text_end]
         return self.line_offset + d.count(b"\n") + (0 if d.endswith(b"\n") or not d else 1)
 
     def token(self, tok, end=None) -> str:
@@ -136,6 +205,39 @@ class Text:
             self._raise_bad_number(toks, ends, dtype, what, starts)
         return out
 
+    def record_span(self, recs: np.ndarray) -> tuple[np.ndarray, int]:
+        """A copy of the bytes from the first to the last token of records ``recs`` (increasing,
+        not empty), and a space, in which only the tokens after each record's first remain: first
+        tokens and the records in between are spaces; and the offset of its first byte in ``data``."""
+        recs = np.asarray(recs, dtype=np.int64)
+        r0, r1 = int(recs[0]), int(recs[-1])
+        lo = int(self.start[self.rec_first[r0]])
+        hi = int(self.end[self.rec_first[r1] + self.rec_count[r1] - 1])
+        w = np.empty(hi - lo + 1, dtype=np.uint8)   # and a space: NumPy's parser reads a number to its end
+        w[:-1] = np.frombuffer(self.data, dtype=np.uint8)[lo:hi]
+        w[-1] = 32
+        every = np.arange(r0, r1 + 1)
+        member = np.zeros(every.size, dtype=bool)
+        member[recs - r0] = True
+        head = self.rec_first[every]
+        # a member loses its first token; another record everything up to the byte before the next
+        # record's first token (whitespace: the ranges stay apart)
+        nxt = self.rec_first[np.minimum(every + 1, self.n_records - 1)]
+        stop = np.where(member, self.end[head], self.start[nxt] - 1)
+        blank(w, self.start[head] - lo, stop - lo)
+        return w, lo
+
+    def record_values(self, recs: np.ndarray, dtype) -> np.ndarray | None:
+        """The numbers of the tokens after the first of each of records ``recs`` (increasing), in
+        order, read in one call (:meth:`record_span`); None when one is not a number of ``dtype``
+        (:meth:`parse` then names it)."""
+        recs = np.asarray(recs, dtype=np.int64)
+        n = int((self.rec_count[recs] - 1).sum())
+        if n == 0:
+            return np.zeros(0, dtype=dtype)
+        out = fromstring(self.record_span(recs)[0], dtype)
+        return out if out is not None and out.size == n else None
+
     def _raise_bad_number(self, toks, ends, dtype, what, starts=None):
         pattern = NUMBER_RE["f" if dtype.kind == "f" else "i"]
         data = self.data
@@ -155,7 +257,7 @@ def strip_bom(data: bytes) -> bytes:
 def text_data(data: bytes, name: str, kind: str) -> bytes:
     """Checks common to text formats: not empty, not binary; strips a BOM."""
     data = strip_bom(data)
-    if not data.strip():
+    if not data or data.isspace():     # (no stripped copy of a large file)
         raise MeshError(f"{name}: empty file")
     nul = data.find(b"\x00")
     if nul >= 0:
