@@ -355,7 +355,7 @@ def with_crease_tags(out, levels_changed_numbering: bool):
     holds, and named in a DataLossWarning otherwise."""
     meta = dict(out.metadata.get("obj") or {})
     elements = list(meta.get("elements") or ())
-    from ..io.obj import crease_tags, is_crease_tag
+    from ..io.obj_creases import crease_tags, is_crease_tag
 
     tags = crease_tags(out.creases) if getattr(out, "creases", None) is not None else []
     if not tags and not any(map(is_crease_tag, elements)):

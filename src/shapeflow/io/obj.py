@@ -27,10 +27,11 @@ from ..errors import DataLossWarning, MeshError
 from ..mesh import Mesh
 from ..mesh.attributes import Indexed, Labels
 from .atomic import writing_in
+from .obj_creases import crease_tags, is_crease_tag
 from .ply import front_comment, front_from_comments
 from .text import Text, build_mesh, fromstring, hashes, ranges, text_data, write_rows
 
-__all__ = ["read_obj", "write_obj", "FACE_TAGS", "crease_tags", "is_crease_tag"]
+__all__ = ["read_obj", "write_obj", "FACE_TAGS"]
 
 TAG_START = np.zeros(256, dtype=bool)
 TAG_START[np.frombuffer(b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz_", np.uint8)] = True
@@ -539,26 +540,6 @@ def write_obj(f: BinaryIO, mesh: Mesh, *, binary: bool | None = None) -> None:
                                           "which changed (subdivision?): not written"), stacklevel=4)
     if creases is not None:
         f.write("".join(f"{tag} {rest}\n" for tag, rest in crease_tags(creases)).encode("utf-8"))
-
-
-def crease_tags(creases) -> list[tuple[str, str]]:
-    """``mesh.creases`` (pairs, Blender's values c) as OBJ ``t crease 2/1 i j s`` lines: one per edge
-    with a positive sharpness s = 10·c² (10: infinitely sharp), 0-based as OpenSubdiv reads them."""
-    pairs, c = (np.asarray(x) for x in creases)
-    s = np.minimum(10.0 * np.square(c.astype(np.float64)), 10.0)
-    keep = s > 0
-    if not keep.any():
-        return []
-    p = pairs[keep].astype(np.int64)
-    rest = np.char.add(np.char.add(np.char.add("crease 2/1 ", p[:, 0].astype(str)), " "), p[:, 1].astype(str))
-    rest = np.char.add(np.char.add(rest, " "), np.char.mod("%.17g", s[keep]))
-    return [("t", r) for r in rest.tolist()]
-
-
-def is_crease_tag(element) -> bool:
-    """Whether an OBJ element line kept by the reader (tag, rest) is a ``t crease`` tag."""
-    tag, rest = element
-    return tag == "t" and rest.split()[:1] == ["crease"]
 
 
 def _warn_missing_libraries(meta: dict) -> None:
