@@ -4,6 +4,7 @@
     python benchmarks/bench_family.py --blender-all    # time all 48 Blender evaluations (~4 s each)
     python benchmarks/bench_family.py --quick          # family only
     python benchmarks/bench_family.py --ratio          # family / flow() at its largest λ, Suzanne x3 (issue 35)
+    python benchmarks/bench_family.py --check-cost     # the members' true-residual check: family with / without
 
 Mesh: spot_quad (shared/meshes) Catmull-Clark subdivided twice with
 ``shapeflow.subdivide``: 46,850 vertices, all quads (the paper's ~40K model;
@@ -29,6 +30,11 @@ their order swapped every round) under four settings in turn each round: kernels
 compiled seed CG against flow()'s Gauss-Seidel CG), each with the default threads and with one.
 Printed per setting: the medians of the family, of flow() and of the per-round ratios, and the
 largest deviation of the family's member from that flow() (x diagonal).
+
+``--check-cost``: the same family on Suzanne with its true-residual check
+(``flow.family_paths.check_members``) and with the check replaced by one that passes every member,
+in interleaved rounds (order swapped every round), kernels as by default and forced: medians and the
+median of the per-round ratios.
 """
 
 from __future__ import annotations
@@ -82,11 +88,14 @@ def main(argv=None) -> int:
     ap.add_argument("--no-blender", action="store_true")
     ap.add_argument("--quick", action="store_true", help="family only (no flow() or Blender comparison)")
     ap.add_argument("--ratio", action="store_true", help="family / flow() at its largest λ on Suzanne (issue 35)")
+    ap.add_argument("--check-cost", action="store_true", help="family with / without its true-residual check")
     ap.add_argument("--rounds", type=int, default=15, help="interleaved rounds of --ratio")
     ap.add_argument("--suzanne-levels", type=int, default=3, help="subdivisions of Suzanne for --ratio")
     args = ap.parse_args(argv)
     if args.ratio:
         return ratio(args.rounds, args.suzanne_levels)
+    if args.check_cost:
+        return check_cost(args.rounds, args.suzanne_levels)
 
     mesh, origin = load_mesh(args.levels)
     V, S, I = mesh.vertices, mesh.face_sizes, mesh.face_indices
@@ -163,15 +172,56 @@ def main(argv=None) -> int:
     return 0
 
 
-def ratio(rounds: int, levels: int) -> int:
-    """Family of 48 against flow() at λ = -235, interleaved rounds under four backend settings."""
-    from shapeflow import accel
-
+def suzanne(levels: int):
     shared = Path(os.environ.get("SHAPEFLOW_SHARED", HERE.parent.parent / "shared"))
     src = shared / "meshes" / "suzanne_hybrid_open.obj"
     mesh = sf.load(src)
     for _ in range(levels):
         mesh = sf.subdivide(mesh, 1)
+    return mesh, src
+
+
+def check_cost(rounds: int, levels: int) -> int:
+    """Family of 48 with and without its true-residual check, interleaved rounds, kernels auto / forced."""
+    import importlib
+
+    from shapeflow import accel
+
+    paths = importlib.import_module("shapeflow.flow.family_paths")
+    real = paths.check_members
+
+    def none_wrong(out, base, lams, ax, plan, As, R0, members, rtol):
+        return members[:0]
+
+    mesh, src = suzanne(levels)
+    lams = np.arange(0.0, -240.0, -5.0)
+    print(f"{src.stem} subdivided {levels}x: {mesh.n_vertices:,} vertices; {lams.size} members; "
+          f"{rounds} interleaved rounds, family with / without the true-residual check")
+    print(f"  before: {load()}")
+    for kernels in ("auto", "force"):
+        with accel.use(kernels=kernels):
+            sf.family(mesh, lams)                     # warm-up
+            on, off = [], []
+            for r in range(rounds):
+                for check in ((True, False) if r % 2 == 0 else (False, True)):
+                    paths.check_members = real if check else none_wrong
+                    t0 = time.perf_counter()
+                    sf.family(mesh, lams)
+                    (on if check else off).append(time.perf_counter() - t0)
+            paths.check_members = real
+        ratios = [a / b for a, b in zip(on, off)]
+        print(f"  kernels {kernels:<6s} with {statistics.median(on) * 1e3:7.1f} ms  without "
+              f"{statistics.median(off) * 1e3:7.1f} ms  ratio median {statistics.median(ratios):.3f} "
+              f"(rounds {min(ratios):.3f}-{max(ratios):.3f})")
+    print(f"  after: {load()}")
+    return 0
+
+
+def ratio(rounds: int, levels: int) -> int:
+    """Family of 48 against flow() at λ = -235, interleaved rounds under four backend settings."""
+    from shapeflow import accel
+
+    mesh, src = suzanne(levels)
     lams = np.arange(0.0, -240.0, -5.0)
     lam_max = float(lams[np.argmax(np.abs(lams))])
     settings = {"kernels auto, threads auto": dict(kernels="auto"),

@@ -63,3 +63,11 @@ class DataLossWarning(UserWarning):
     The message names what is lost (``'l' lines (polylines)``, ``corner attribute 'uv'``...);
     the command line prints it as one ``warning:`` line.
     """
+
+
+class SolverWarning(UserWarning):
+    """A fast solver path missed its tolerance and the result was computed another way.
+
+    The message names what fell back (a family's members and their λ, ...) and how it was solved
+    instead; the result meets its tolerance all the same.
+    """

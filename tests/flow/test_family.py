@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import importlib
+import importlib.util
+import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -12,6 +15,7 @@ from meshgen import cube_sphere, grid, icosphere
 
 import shapeflow as sf
 from shapeflow.cli import main
+from shapeflow.errors import SolverWarning
 
 paths = importlib.import_module("shapeflow.flow.family_paths")
 from shapeflow.linalg import spd  # noqa: E402
@@ -108,13 +112,15 @@ def test_generated_meshes_match_flow():
 @pytest.mark.parametrize("shape", ["triangles", "quads"])
 def test_figure1_family_against_default_flows(kernels, shape, monkeypatch):
     """48 members (enhancement and smoothing) through the low-rank fold, against flow() with its own
-    default preconditioner (symmetric Gauss–Seidel where compiled): within 1e-7 of the diagonal; and a
-    second family on the same mesh (the operator's cached locality order reused) is the same."""
+    default preconditioner (symmetric Gauss–Seidel where compiled): within 1e-7 of the diagonal, every
+    member through the true-residual check in silence; and a second family on the same mesh (the
+    operator's cached locality order reused) is the same."""
     monkeypatch.setattr(spd, "DEFAULT_PRECONDITIONER", "auto")
     mesh = icosphere(4) if shape == "triangles" else cube_sphere(20)
     mesh = mesh.with_vertices(mesh.vertices * (1.0 + 0.1 * np.sin(4.0 * mesh.vertices[:, :1])))
     lams = np.r_[np.arange(0.0, -235.0, -5.0), 40.0]
-    with sf.accel.use(kernels=kernels):
+    with sf.accel.use(kernels=kernels), warnings.catch_warnings():
+        warnings.simplefilter("error", SolverWarning)       # every member passes its true-residual check
         shapes, report = sf.family(mesh, lams, return_report=True)
         again = sf.family(mesh, lams)
         worst = max(float(np.abs(shapes[m] - sf.flow(mesh, lam).vertices).max()) for m, lam in enumerate(lams))
@@ -255,6 +261,65 @@ def test_unconverged_members_are_redone(monkeypatch):
     assert unconverged and len(unconverged) < len(lams)   # the case exercises both outcomes
     assert report.fallback_members == sorted(unconverged)
     assert any("did not converge" in n for n in report.notes)
+
+
+def _corrupting(monkeypatch, name: str, target: int, factor: float) -> list:
+    """Replace ``paths.<name>`` (the shared CG or BiCG) by one whose shift ``target`` (ascending σ)
+    comes out scaled by ``factor``: a member the recurrences call converged but that is wrong."""
+    real = getattr(paths, name)
+    calls = []
+
+    def cg(*a, emit, **kw):
+        def bad_emit(shifts, rows):
+            rows = rows.copy()
+            rows[:, shifts == target] *= factor
+            emit(shifts, rows)
+        calls.append(1)
+        return real(*a, emit=bad_emit, **kw)
+
+    def bicg(*a, **kw):
+        res = real(*a, **kw)
+        res.X[:, target] *= factor
+        calls.append(1)
+        return res
+
+    monkeypatch.setattr(paths, name, cg if name == "multishift_cg" else bicg)
+    return calls
+
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+@pytest.mark.parametrize("shape", ["triangles", "quads"])
+@pytest.mark.parametrize("factor", [1.0 + 1e-5, -1.0])
+def test_true_residual_check_redoes_a_wrong_member(kernels, shape, factor, monkeypatch):
+    """A member off by 1e-5 of its displacement (or flipped) though the recurrences say converged: its
+    true residual (1e-5 ≫ 10 · rtol) gives it away, it is solved again as flow() and a SolverWarning
+    names it; the members of the other shifts are the shared solve's."""
+    mesh = icosphere(3) if shape == "triangles" else cube_sphere(8, mix=0.3, seed=3)
+    lams = [0.0, -5.0, 5.0, -50.0, -120.0]       # σ ascending: |λ| 120, 50, 5 -> shift 2 is members 1, 2
+    calls = _corrupting(monkeypatch, "multishift_cg", 2, factor)
+    with sf.accel.use(kernels=kernels), pytest.warns(SolverWarning) as caught:
+        report, _ = _agree(mesh, lams)
+    assert calls and report.path == "multishift" and report.fallback_members == [1, 2]
+    (w,) = [w for w in caught if issubclass(w.category, SolverWarning)]
+    assert "2 member(s)" in str(w.message) and "λ = -5, 5" in str(w.message)
+    assert report.member_reports[1].lam == -5.0 and report.member_reports[3] is None
+    assert any("true residual" in n for n in report.notes)
+
+
+def test_true_residual_check_with_sharp_edges(monkeypatch):
+    """The same on the BiCG of the feature-aware family: the wrong member is found and redone."""
+    spec = importlib.util.spec_from_file_location("feature_shapes", Path(__file__).with_name("feature_shapes.py"))
+    fs = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fs)
+    mesh = fs.l_bracket(split=0.3)[0]
+    lams = [-4.0, -30.0]                          # σ ascending: |λ| 30, 4 -> shift 1 is member 0
+    calls = _corrupting(monkeypatch, "multishift_bicg", 1, 1.0 + 1e-5)
+    with pytest.warns(SolverWarning, match=r"1 member\(s\).*λ = -4\)"):
+        shapes, report = sf.family(mesh, lams, feature_angle=30.0, return_report=True)
+    assert calls and report.solver.startswith("multishift-bicg") and report.fallback_members == [0]
+    for m, lam in enumerate(lams):
+        ref = sf.flow(mesh, lam, feature_angle=30.0).vertices
+        assert np.abs(shapes[m] - ref).max() <= (1e-12 if m == 0 else 1e-7) * mesh.diagonal
 
 
 def test_strategy_multishift_refuses_when_it_does_not_apply():

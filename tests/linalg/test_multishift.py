@@ -1,5 +1,6 @@
 """Multi-shift CG (linalg.multishift): its members against direct solves, the compiled seed against its
-NumPy twin (NumpySeed), the low-rank fold against the full one, and blocks replayed against one block."""
+NumPy twin (NumpySeed), the low-rank fold against the full one, blocks replayed against one block, and
+the true residuals of a block of solutions against dense products."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as sla
 
 from shapeflow import accel
-from shapeflow.linalg.multishift import multishift_cg
+from shapeflow.linalg.multishift import multishift_cg, shifted_residuals
 
 
 def grid_laplacian(m: int) -> sp.csr_matrix:
@@ -103,3 +104,22 @@ def test_emit_hands_over_every_member_transformed(problem):
     assert res.X is None and (count == 1).all()
     want = (full.X * scale)[:, :, take]
     assert np.abs(seen - want).max() <= 1e-12 * np.abs(want).max()
+
+
+def test_shifted_residuals_are_the_dense_ones(problem):
+    """‖b_j − (A + s_q I) y_qj‖ and ‖y_qj‖ of a block of (perturbed) solutions, against dense products
+    column by column; the direct solutions leave residuals at rounding level."""
+    A, B, ref = problem
+    n, q = A.shape[0], 7
+    rng = np.random.default_rng(5)
+    Y = np.ascontiguousarray(ref[:, :q].transpose(2, 1, 0))             # (n, q, c)
+    Y[:, 3] += 1e-6 * rng.standard_normal((n, 3))
+    Ad = A.toarray()
+    want = np.array([[np.linalg.norm(B[j] - (Ad + SHIFTS[i] * np.eye(n)) @ Y[:, i, j]) for j in range(3)]
+                     for i in range(q)])
+    ynorm = np.linalg.norm(Y, axis=0)
+    res, got_norm = shifted_residuals(A, B, SHIFTS[:q], Y.copy())
+    assert np.allclose(res, want, rtol=1e-10, atol=1e-13 * np.abs(B).max())
+    assert np.allclose(got_norm, ynorm, rtol=1e-14)
+    rel = res / np.linalg.norm(B, axis=1)
+    assert (rel[3] > 1e-7).all() and (np.delete(rel, 3, axis=0) < 1e-12).all()

@@ -40,6 +40,19 @@ norm flow()'s CG stops on, so the seed member reproduces flow()'s CG
 iterations exactly (in exact arithmetic); with weights both are valid
 preconditioners and the results agree to the CG tolerance.
 
+The members are then checked by their true residuals, which the recurrences
+never compute: every member solved in the shared solve is read back from
+the result, ``Y = ±C_1^{1/2}(member − base)``, and ``‖b − (σ I + M) Y‖``
+compared per coordinate with ``10 × rtol ‖b‖`` (the factor covers the gap
+between the recurrence and the true residual: rounding, ~ε κ, and the
+low-rank fold; measured below 1 × rtol on the figure-1 families) plus what
+rounding the positions alone leaves (ε (‖|M|‖∞ + σ)(‖C_1^{1/2} base‖ + ‖Y‖)),
+in blocks of 8 members with one sparse product each
+(:func:`~shapeflow.flow.family_paths.check_members`).  A member that fails
+(a wrong matrix or order, a fold that went astray) is solved again on its own
+exactly as ``flow()`` does (with that path's own checks and fallback), and a
+:class:`~shapeflow.errors.SolverWarning` names how many members and their λ.
+
 Cost: the shifted solutions are linear combinations of the seed residuals.
 Rather than two axpy passes per member per iteration (48 members × 3 columns
 × n — more than the matrix-vector product), the residuals are kept in a block
@@ -133,7 +146,11 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
 
     ``result[m]`` equals ``flow(mesh, lams[m], **options).vertices`` (to the
     CG tolerance), but one iteration of all members costs about as much as the
-    hardest member alone (multi-shift CG; see the module docstring).
+    hardest member alone (multi-shift CG; see the module docstring).  Every
+    member of the shared solve is checked by its true residual (10 × ``rtol``);
+    one that misses it is solved again as ``flow()`` and named in a
+    :class:`~shapeflow.errors.SolverWarning` (and in ``report.notes`` and
+    ``report.fallback_members``).
 
     Parameters
     ----------
