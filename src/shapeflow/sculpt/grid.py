@@ -73,6 +73,11 @@ class KDIndex:
     def query(self, V: np.ndarray, far: np.ndarray, c: np.ndarray, R: float, r: float):
         """The vertices not flagged in ``far`` within ``r`` of ``c`` at the positions ``V`` (which differ
         from the indexed ones by at most R − r for them), and their distances."""
+        # a ball that misses the tree's box finds nothing; asking SciPy would square a distance of
+        # ~1e300 (a centre far off the model), which it refuses as an overflow
+        gap = np.maximum(np.maximum(self.tree.mins - c, c - self.tree.maxes), 0.0)
+        if not (np.isfinite(gap).all() and gap.max(initial=0.0) <= R):
+            return np.zeros(0, np.int64), np.zeros(0)
         found = self.tree.query_ball_point(c, R, return_sorted=False)
         cand = np.fromiter(found, dtype=np.int64, count=len(found))
         return within(V, cand[~far[cand]], c, r)
