@@ -229,7 +229,7 @@ def split_normal_marks(mesh) -> tuple[np.ndarray, int]:
     or USD file splits a vertex where its normals differ, so only the weld makes such an edge
     shared by two faces; each of the input's copies of a welded edge is marked), and how many
     distinct edges of the welded mesh that is."""
-    from ..geometry.features import split_normal_edges
+    from ..geometry.features import find_edges, split_normal_edges
     from ..geometry.weld import weld_if_split
 
     if "normal" not in mesh.corner_attributes:
@@ -240,17 +240,10 @@ def split_normal_marks(mesh) -> tuple[np.ndarray, int]:
         return sharp, int(sharp.sum())
     sharp = split_normal_edges(welded)
     e = welded.weld_map[mesh.topology.edges]
-    keep = e[:, 0] != e[:, 1]
-    lo, hi = np.minimum(e[:, 0], e[:, 1]), np.maximum(e[:, 0], e[:, 1])
-    we = welded.topology.edges
-    n = np.int64(max(welded.n_vertices, 1))
-    wkey = we[:, 0].astype(np.int64) * n + we[:, 1]
-    order = np.argsort(wkey)
-    key = lo.astype(np.int64) * n + hi
-    pos = np.minimum(np.searchsorted(wkey[order], key), max(wkey.size - 1, 0))
-    found = keep & (wkey[order][pos] == key) if wkey.size else np.zeros(key.size, bool)
+    ids, found = find_edges(welded, e)
+    found &= e[:, 0] != e[:, 1]
     out = np.zeros(mesh.topology.n_edges, bool)
-    out[found] = sharp[order[pos[found]]]
+    out[found] = sharp[ids[found]]
     return out, int(sharp.sum())
 
 

@@ -30,7 +30,7 @@ from .. import accel, params
 from ..errors import ParameterError
 from .measures import face_vector_areas, pow2_exponent
 
-__all__ = ["dihedral_angles", "angle_sharp_edges", "two_face_edges", "edge_ids", "check_feature_angle",
+__all__ = ["dihedral_angles", "angle_sharp_edges", "two_face_edges", "edge_ids", "find_edges", "check_feature_angle",
            "smoothing_group_edges", "file_creases", "file_sharp_edges", "split_normal_edges", "SPLIT_NORMAL_DEGREES",
            "OFF_GROUPS"]
 
@@ -123,17 +123,26 @@ def edge_ids(mesh, pairs, name: str = "sharp_edges") -> np.ndarray:
         raise ParameterError(f"{name}: row {i} {a[i].astype(np.int64).tolist()} names a vertex outside "
                              f"[0, {n})")
     p = a.astype(np.int64)
-    lo, hi = np.minimum(p[:, 0], p[:, 1]), np.maximum(p[:, 0], p[:, 1])
-    key = lo * np.int64(max(n, 1)) + hi
-    keys, ids = _edge_keys(t)
-    pos = np.minimum(np.searchsorted(keys, key), max(keys.size - 1, 0))
-    found = keys[pos] == key if keys.size else np.zeros(key.size, bool)
+    ids, found = find_edges(t, p)
     bad = np.flatnonzero(~found)
     if bad.size:
         i = int(bad[0])
         raise ParameterError(f"{name}: row {i} ({int(p[i, 0])}, {int(p[i, 1])}) is not an edge of the mesh"
                              + (f" ({bad.size} such rows)" if bad.size > 1 else ""))
-    return ids[pos]
+    return ids
+
+
+def find_edges(mesh, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Edge ids (into ``mesh.topology.edges``) of the integer vertex pairs ``pairs`` (k, 2), in range,
+    and whether each is an edge (where not, its id is meaningless); ``mesh`` may be a Topology."""
+    t = getattr(mesh, "topology", mesh)
+    p = np.asarray(pairs, dtype=np.int64).reshape(-1, 2)
+    lo, hi = np.minimum(p[:, 0], p[:, 1]), np.maximum(p[:, 0], p[:, 1])
+    key = lo * np.int64(max(t.n_vertices, 1)) + hi
+    keys, ids = _edge_keys(t)
+    pos = np.minimum(np.searchsorted(keys, key), max(keys.size - 1, 0))
+    found = keys[pos] == key if keys.size else np.zeros(key.size, bool)
+    return (ids[pos] if ids.size else np.zeros(key.size, np.int64)), found
 
 
 def smoothing_group_edges(mesh) -> np.ndarray:
