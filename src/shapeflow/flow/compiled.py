@@ -127,6 +127,123 @@ def _scaled_abs_row_max(indptr, indices, data, s, nt):
     return part.max()
 
 
+#: members per block of :func:`member_residuals` (their displacements (n, 3 × block) stay in cache)
+RESIDUAL_MEMBERS = 16
+
+#: rows per block of :func:`member_residuals`' partial sums (added in block order)
+ROWS = 2048
+
+
+def member_residuals(indptr, indices, data, R0, out, base, inv_scale, cols, members, signs, deltas):
+    """``FlowKernels.member_residuals`` compiled: per block of :data:`RESIDUAL_MEMBERS` members, their
+    displacements in one (n, 3 × block) array, then one pass over the matrix for all of them (partial
+    sums per :data:`ROWS` rows, added in order).  One thread: on two cores, threads here slowed the
+    family's sequential seed iterations that follow (measured 2026-11-26)."""
+    c, n = cols.size, base.shape[0]
+    cols3 = np.empty(3, np.int64)
+    cols3[:] = cols[0]
+    cols3[:c] = cols
+    R3 = np.zeros((3, n))
+    R3[:c] = R0
+    members = np.asarray(members, np.int64)
+    signs = np.asarray(signs, np.float64)
+    deltas = np.asarray(deltas, np.float64)
+    nb = (n + ROWS - 1) // ROWS
+    q = min(RESIDUAL_MEMBERS, members.size)
+    Y = np.empty((n, 3 * q))
+    part_r = np.empty((nb, 3 * q))
+    part_y = np.empty((nb, 3 * q))
+    res = np.empty((members.size, c))
+    ynorm = np.empty((members.size, c))
+    for s0 in range(0, members.size, q):
+        s1 = min(members.size, s0 + q)
+        w = 3 * (s1 - s0)
+        _displacements(out, base, inv_scale, cols3, members[s0:s1], signs[s0:s1], Y[:, :w])
+        _shifted_norms(indptr, indices, data, R3, deltas[s0:s1], Y[:, :w], part_r[:, :w], part_y[:, :w])
+        res[s0:s1] = np.sqrt(part_r[:, :w].sum(axis=0)).reshape(s1 - s0, 3)[:, :c]
+        ynorm[s0:s1] = np.sqrt(part_y[:, :w].sum(axis=0)).reshape(s1 - s0, 3)[:, :c]
+    return res, ynorm
+
+
+@njit(cache=True)
+def _displacements(out, base, inv_scale, cols, members, signs, Y):
+    """Y[i, 3p + t] = signs[p] (out[members[p], i, cols[t]] − base[i, cols[t]]) · inv_scale[i]."""
+    for i in range(Y.shape[0]):                 # row i of Y written at once
+        s = inv_scale[i]
+        for p in range(members.size):
+            m = members[p]
+            sg = signs[p]
+            for t in range(3):
+                j = cols[t]
+                Y[i, 3 * p + t] = sg * (out[m, i, j] - base[i, j]) * s
+
+
+@njit(cache=True)
+def _shifted_norms(indptr, indices, data, R0, deltas, Y, part_r, part_y):
+    """Per block of :data:`ROWS` rows, Σ e² with e = (A Y)[i, u] + δ_p Y[i, u] − R0[t, i] (u = 3p + t) and Σ Y²."""
+    n, w = Y.shape
+    for b in range(part_r.shape[0]):
+        acc = np.empty(w)
+        rr = np.zeros(w)
+        yy = np.zeros(w)
+        for i in range(b * ROWS, min(n, (b + 1) * ROWS)):
+            for u in range(w):
+                acc[u] = 0.0
+            for k in range(indptr[i], indptr[i + 1]):
+                v = data[k]
+                j = np.uint64(indices[k])
+                for u in range(w):
+                    acc[u] += v * Y[j, u]
+            b0 = R0[0, i]
+            b1 = R0[1, i]
+            b2 = R0[2, i]
+            for p in range(w // 3):
+                d = deltas[p]
+                u = 3 * p
+                y0 = Y[i, u]
+                y1 = Y[i, u + 1]
+                y2 = Y[i, u + 2]
+                e0 = acc[u] + d * y0 - b0
+                e1 = acc[u + 1] + d * y1 - b1
+                e2 = acc[u + 2] + d * y2 - b2
+                rr[u] += e0 * e0
+                rr[u + 1] += e1 * e1
+                rr[u + 2] += e2 * e2
+                yy[u] += y0 * y0
+                yy[u + 1] += y1 * y1
+                yy[u + 2] += y2 * y2
+        part_r[b] = rr
+        part_y[b] = yy
+
+
+def scatter_members(out, base, cols, i0, rows, members, shift_of, signs):
+    """``FlowKernels.scatter_members`` compiled: one pass per member over its block of positions."""
+    bad = np.zeros(rows.shape[1], np.bool_)
+    _scatter_members(out, base, np.asarray(cols, np.int64), i0, rows, np.asarray(members, np.int64),
+                     np.asarray(shift_of, np.int64), np.asarray(signs, np.float64), bad)
+    return ~bad
+
+
+@njit(cache=True)
+def _scatter_members(out, base, cols, i0, rows, members, shift_of, signs, bad):
+    c, _, w = rows.shape
+    for p in range(members.size):               # one member's rows: a run of its positions
+        o = out[members[p]]
+        q = shift_of[p]
+        sg = signs[p]
+        check = 0.0
+        for i in range(w):
+            o[i0 + i, 0] = base[i0 + i, 0]
+            o[i0 + i, 1] = base[i0 + i, 1]
+            o[i0 + i, 2] = base[i0 + i, 2]
+            for t in range(c):
+                v = rows[t, q, i]
+                check += v * 0.0                # NaN once a value is not finite
+                o[i0 + i, cols[t]] += sg * v
+        if check != 0.0:
+            bad[q] = True
+
+
 def take(a, idx):
     """``a[idx]`` for a 1-D or (n, 3) float64 array and non-negative indices, on all threads
     (NumPy's fancy indexing converts int32 indices to a new intp array first)."""
@@ -328,6 +445,19 @@ class FlowNumba(FlowKernels):
             return super().step_result(X, V, factor, flip, axes, out)
         return step_result(X, V, factor, flip, axes, out)
 
+    def member_residuals(self, As, R0, out, base, inv_scale, cols, members, signs, deltas):
+        if not (int32_csr_matrix(As) and out.dtype == base.dtype == np.float64 and out.ndim == 3
+                and out.shape[2] == 3 and base.shape[1] == 3 and out.flags.c_contiguous and 1 <= cols.size <= 3):
+            return super().member_residuals(As, R0, out, base, inv_scale, cols, members, signs, deltas)
+        return member_residuals(As.indptr, As.indices, np.ascontiguousarray(As.data, dtype=np.float64), R0, out,
+                                base, np.ascontiguousarray(inv_scale, dtype=np.float64), cols, members, signs, deltas)
+
+    def scatter_members(self, out, base, cols, i0, rows, members, shift_of, signs):
+        if not (out.dtype == rows.dtype == base.dtype == np.float64 and out.ndim == 3 and rows.ndim == 3
+                and out.shape[2] == 3 and base.shape[1] == 3):
+            return super().scatter_members(out, base, cols, i0, rows, members, shift_of, signs)
+        return scatter_members(out, base, cols, i0, rows, members, shift_of, signs)
+
     def take(self, a, idx):
         return take(a, idx)
 
@@ -341,3 +471,9 @@ class FlowNumba(FlowKernels):
         if not (A.dtype == B.dtype == np.float64 and A.ndim == B.ndim == 2 and A.shape[1] == 3):
             return super().max_row_distance(A, B, chunk)
         return float(max_row_distance(A, B))
+
+
+def int32_csr_matrix(A) -> bool:
+    """Whether A is a SciPy CSR matrix with int32 index arrays (what the compiled products take)."""
+    return (getattr(A, "format", None) == "csr" and A.indices.dtype == np.int32
+            and A.indptr.dtype == np.int32)

@@ -15,8 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from .. import accel
 from ..errors import SolverWarning
-from ..linalg.multishift import BLOCK_BYTES, TRUE_RESIDUAL_FACTOR, multishift_cg, shifted_residuals
+from ..linalg.multishift import BLOCK_BYTES, TRUE_RESIDUAL_FACTOR, multishift_cg
 from ..linalg.spd import estimate_cg_iterations
 from .family_features import coupled_seed_system, multishift_bicg
 from .report import FamilyReport, FlowReport
@@ -127,13 +128,13 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
         base[bad] = V[bad]
         report.notes.append(f"{int(bad.sum())} vertices with a non-finite solution kept in place")
     out = np.empty((k, n, 3))
-    out[:] = base
+    solved = plan.member_shift >= 0
+    out[~solved] = base                             # the shared solve's members are written by its sink
     zero = (plan.member_shift < 0) & ~plan.hard     # λ = 0: V with the boundary moved
     tick(int(zero.sum()))
     if plan.hard.any():
         report.fallback_members = [int(m) for m in np.flatnonzero(plan.hard)]
         report.notes.append(plan.note)
-    solved = plan.member_shift >= 0
     if (interior_sys is not None or curve_sys is not None) and solved.any():
         member_of_shift = [np.flatnonzero(plan.member_shift == i) for i in range(plan.sigmas.size)]
         counted = np.zeros(plan.sigmas.size, bool)
@@ -144,8 +145,9 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
             tick(int(sum(member_of_shift[i].size for i in np.flatnonzero(new))))
 
         finite = np.ones(plan.sigmas.size, bool)
-        res, As, R0 = run_shared(flow_solver, operator, plan, X, ax,
-                                 member_sink(out, lams, ax, member_of_shift, finite), on_progress)
+        sink = MemberSink(out, base, lams, ax, member_of_shift, finite)
+        res, system = run_shared(flow_solver, operator, plan, X, ax, sink, on_progress)
+        out[solved & ~sink.filled] = base
         report.krylov_iterations = res.krylov_iterations
         ok = res.converged.all(axis=1) & finite
         its = np.where(res.converged, res.iterations, res.krylov_iterations).max(axis=1)
@@ -156,7 +158,7 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
             report.notes.append(f"{bad.size} member(s) did not converge in {plan.maxiter} shared iterations "
                                 "and were solved separately")
         checked = np.flatnonzero(solved & ok[np.maximum(plan.member_shift, 0)])
-        wrong = check_members(out, base, lams, ax, plan, As, R0, checked, flow_solver.rtol)
+        wrong = check_members(out, base, lams, ax, plan, system, checked, flow_solver.rtol)
         if wrong.size:
             report.fallback_members = sorted(set(report.fallback_members) | {int(m) for m in wrong})
             msg = (f"{wrong.size} member(s) of the shared solve missed rtol={flow_solver.rtol:g} in their true "
@@ -164,6 +166,7 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
             report.notes.append(msg)
             warnings.warn(SolverWarning(msg), stacklevel=4)
     elif solved.any():
+        out[solved] = base
         tick(int(solved.sum()))                             # no free interior vertex: boundary moves only
     if preserve_volume:
         has_interior, has_boundary = interior_sys is not None or curve_sys is not None, boundary_sys is not None
@@ -172,92 +175,97 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
     return out
 
 
-def member_sink(out: np.ndarray, lams: np.ndarray, ax: np.ndarray, member_of_shift: list, finite: np.ndarray):
-    """The ``emit`` of the shared solve: members += ± their displacements Δ = C_1^{-1/2} Y (``rows[t, q]``
-    column t of shift ``shifts[q]``, scaled already); ``finite[i]`` says whether shift i's were."""
-    cols = np.flatnonzero(ax)
-    plus = lams >= 0
+class MemberSink:
+    """The ``emit`` of the shared solve: each member becomes ``base`` ± its displacement Δ = C_1^{-1/2} Y
+    (``rows[t, q]`` column t of shift ``shifts[q]``, scaled already); ``finite[i]`` says whether shift
+    i's were, ``filled[m]`` whether member m was written.  :meth:`factors` takes the solve's low-rank
+    factors instead of the rows (the flow kernel family's ``add_members``: the members formed and
+    written in one pass)."""
 
-    def add(shifts, rows):
+    def __init__(self, out: np.ndarray, base: np.ndarray, lams: np.ndarray, ax: np.ndarray,
+                 member_of_shift: list, finite: np.ndarray):
+        self.out, self.base, self.finite, self.member_of_shift = out, base, finite, member_of_shift
+        self.cols = np.flatnonzero(ax)
+        self.plus = lams >= 0
+        self.filled = np.zeros(lams.size, bool)
+
+    def __call__(self, shifts, rows):
+        out, cols, plus = self.out, self.cols, self.plus
         for q, i in enumerate(shifts):
-            finite[i] = bool(np.isfinite(rows[:, q]).all())
-            for m in member_of_shift[i]:
+            self.finite[i] = bool(np.isfinite(rows[:, q]).all())
+            for m in self.member_of_shift[i]:
+                if not self.filled[m]:
+                    out[m] = self.base
+                    self.filled[m] = True
                 for t, j in enumerate(cols):
                     if plus[m]:
                         out[m, :, j] += rows[t, q]
                     else:
                         out[m, :, j] -= rows[t, q]
-    return add
+
+    def factors(self, lefts: list, Ws: list) -> None:
+        """Every shift's solution from its low-rank factors: column t is ``lefts[t] @ Ws[t]``."""
+        k = len(self.member_of_shift)
+        shift_of = np.concatenate([np.full(ms.size, i) for i, ms in enumerate(self.member_of_shift)] or [[]])
+        members = np.concatenate(list(self.member_of_shift) or [[]]).astype(np.int64)
+        signs = np.where(self.plus[members], 1.0, -1.0)
+        kern = accel.kernels("flow", self.out.shape[1])
+        self.finite[:] = kern.add_members(self.out, self.base, self.cols, members, shift_of.astype(np.int64),
+                                          signs, lefts, Ws, k)
+        self.filled[members] = True
 
 
 def run_shared(flow_solver: FlowSolver, operator, plan: SharedPlan, X: np.ndarray, ax: np.ndarray, add, progress):
-    """The multi-shift solve of the plan's shifts, its members handed to ``add`` (:func:`member_sink`):
+    """The multi-shift solve of the plan's shifts, its members handed to ``add`` (:class:`MemberSink`):
     BiCG with feature curves (:mod:`~shapeflow.flow.family_features`), else CG on the system in the
-    operator's locality order."""
+    operator's locality order.  Returns the result and the scaled system solved in the mesh's order,
+    ``(A, R0)``."""
     interior_sys, curve_sys, S, V = plan.interior_sys, plan.curve_sys, plan.scale, flow_solver.mesh.vertices
     deltas = plan.sigmas - plan.sigmas[0]
     if curve_sys is not None:     # curves and surface: one non-symmetric shifted system
         R0, As, AsT, _ = coupled_seed_system(interior_sys, curve_sys, S, V, X, ax)
         res = multishift_bicg(As, AsT, R0, deltas, rtol=flow_solver.rtol, maxiter=plan.maxiter, progress=progress)
         add(np.arange(plan.sigmas.size), res.X * S)
-        return res, As, R0
+        return res, (As, R0)
     R0, As, _ = seed_system(interior_sys, S, V, X, ax)
     Ap, R0p, Sp, inv = in_locality_order(operator, As, R0, S)
     res = multishift_cg(Ap, R0p, deltas, rtol=flow_solver.rtol, maxiter=plan.maxiter,
                         block_bytes=block_bytes(plan.sigmas.size, S.size), progress=progress, emit=add,
                         post=(Sp, inv))      # 0 off the free rows; back from the locality order
-    return res, As, R0
-
-
-#: members whose true residuals are checked at a time (:func:`check_members`; three (n, q, 3) blocks, far
-#: within the four blocks of 64 members of :func:`~shapeflow.flow.family.family_bytes`; 8 measured faster
-#: than 4, 16 or 48 on Suzanne ×3: the blocks' passes stay in cache)
-CHECK_MEMBERS = 8
+    return res, (As, R0)
 
 
 def check_members(out: np.ndarray, base: np.ndarray, lams: np.ndarray, ax: np.ndarray, plan: SharedPlan,
-                  As, R0: np.ndarray, members: np.ndarray, rtol: float) -> np.ndarray:
+                  system, members: np.ndarray, rtol: float) -> np.ndarray:
     """The listed members whose true residual misses the tolerance.
 
-    For each, the scaled system ``(σ I + M) Y = b`` of the shared solve (``As`` = σ_seed I + M and
-    ``R0`` = b in the mesh's order, columns of the enabled axes) is evaluated at ``Y = C_1^{1/2} Δ``
-    with Δ = ±(member − base) read back from ``out`` (:func:`~shapeflow.linalg.multishift.shifted_residuals`,
-    blocks of :data:`CHECK_MEMBERS` members).  A column passes when its residual is at most
+    For each, the scaled system ``(σ I + M) Y = b`` of the shared solve (``system`` = ``(As, R0)``
+    from :func:`run_shared`: As = σ_seed I + M and R0 = b in the mesh's order, columns of the enabled
+    axes) is evaluated at ``Y = C_1^{1/2} Δ`` with Δ = ±(member − base) read back from ``out``
+    (the flow kernel family's ``member_residuals``).
+    A column passes when its residual is at most
     :data:`~shapeflow.linalg.multishift.TRUE_RESIDUAL_FACTOR` × (``rtol ‖b‖`` + what rounding the
     positions alone leaves, ε (‖|As|‖∞ + δ)(‖base/S‖ + ‖Y‖)); a non-finite one fails.
     """
     cols = np.flatnonzero(ax)
     if members.size == 0 or cols.size == 0:
         return members[:0]
-    n, c = base.shape[0], cols.size
-    all_cols = c == base.shape[1]
-    base_c = base if all_cols else np.ascontiguousarray(base[:, cols])
-    inv_scale = np.repeat(1.0 / plan.scale, c).reshape(n, c)
-    deltas = plan.sigmas - plan.sigmas[0]
-    norm_a = float(abs(As).sum(axis=1).max())
+    As, R0 = system
+    inv_scale = 1.0 / plan.scale
+    deltas = (plan.sigmas - plan.sigmas[0])[plan.member_shift[members]]
+    signs = np.where(lams[members] >= 0, 1.0, -1.0)
+    # ‖|As|‖∞ from the stored entries (SciPy's abs() sums duplicates in place, a change to As's index
+    # arrays, which a system may share with the operator pattern's caches)
+    rows = np.repeat(np.arange(As.shape[0]), np.diff(As.indptr))
+    norm_a = float(np.bincount(rows, np.abs(As.data), minlength=As.shape[0]).max())
     eps = np.finfo(np.float64).eps
     tol = TRUE_RESIDUAL_FACTOR * rtol * np.sqrt(np.einsum("ji,ji->j", R0, R0))          # (c,)
-    scaled_base = base_c * inv_scale
+    scaled_base = base[:, cols] * inv_scale[:, None]
     base_size = np.sqrt(np.einsum("ij,ij->j", scaled_base, scaled_base))
-    bad = np.zeros(members.size, bool)
-    for s0 in range(0, members.size, CHECK_MEMBERS):
-        ms = members[s0:s0 + CHECK_MEMBERS]
-        D = np.empty((ms.size, n, c))                        # ±Δ = ±(member − base), contiguous rows
-        for q, m in enumerate(ms):                           # (members, not vertices)
-            x = out[m] if all_cols else out[m][:, cols]
-            if lams[m] >= 0:
-                np.subtract(x, base_c, out=D[q])
-            else:
-                np.subtract(base_c, x, out=D[q])
-        D *= inv_scale
-        # (n, q, c) for one sparse product over all members: the (n, c) rows moved as single items
-        Y = np.ascontiguousarray(D.view(np.dtype((np.void, 8 * c))).reshape(ms.size, n).T)
-        Y = Y.view(np.float64).reshape(n, ms.size, c)
-        d = deltas[plan.member_shift[ms]]
-        res, ynorm = shifted_residuals(As, R0, d, Y)
-        floor = TRUE_RESIDUAL_FACTOR * eps * (norm_a + d)[:, None] * (base_size + ynorm)
-        bad[s0:s0 + ms.size] = ~(res <= tol + floor).all(axis=1)
-    return members[bad]
+    kern = accel.kernels("flow", base.shape[0])
+    res, ynorm = kern.member_residuals(As, R0, out, base, inv_scale, cols, members, signs, deltas)
+    floor = TRUE_RESIDUAL_FACTOR * eps * (norm_a + deltas)[:, None] * (base_size + ynorm)
+    return members[~(res <= tol + floor).all(axis=1)]
 
 
 def block_bytes(k: int, n: int) -> int:

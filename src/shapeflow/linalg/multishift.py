@@ -88,7 +88,10 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
         column" whenever it changes.
     emit : when given, the iterates are not collected in ``X`` (which is then None) but
         handed over as they are formed: ``emit(shifts, rows)`` with ``rows[j, q]`` column ``j``
-        of the solution for shift ``shifts[q]`` (a buffer reused after the call returns).
+        of the solution for shift ``shifts[q]`` (a buffer reused after the call returns).  An
+        ``emit`` with a ``factors`` method is handed the low-rank factors instead when every column
+        was factorised: ``emit.factors(lefts, Ws)``, column j of every solution being
+        ``lefts[j] @ Ws[j]`` ((k, r_j) in the order of ``shifts``, (r_j, n) transformed by ``post``).
     post : ``(scale, take)``, either may be None: every solution column x is returned (or
         emitted) as ``(scale * x)[take]`` (applied to the low-rank factor, before the rows are formed).
 
@@ -215,6 +218,9 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
                 W[j] *= scale                           # rows of W: the transform is linear
             if take is not None:
                 W[j] = W[j][:, take]
+    if all(f is not None for f in factors) and hasattr(emit, "factors"):
+        emit.factors(lefts, W)                          # the receiver forms the rows itself
+        return nblocks, tuple(f[0].shape[1] for f in factors)
     chunk = min(EMIT_ROWS, k)
     buf = np.empty((c, chunk, n))                       # buf[j]: contiguous rows, one GEMM's output
     for s0 in range(0, k, chunk):

@@ -1,0 +1,140 @@
+"""The flow kernel family's family kernels: the members' true residuals (``member_residuals``) and the
+members formed from a low-rank solve (``add_members``), NumPy reference and compiled, against dense
+NumPy arithmetic written out here; and the family's use of them (the low-rank path, a corrupted
+factor found by the check)."""
+
+from __future__ import annotations
+
+import importlib
+import warnings
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from meshgen import cube_sphere
+
+import shapeflow as sf
+from shapeflow import accel
+from shapeflow.errors import SolverWarning
+
+paths = importlib.import_module("shapeflow.flow.family_paths")
+KERNELS = ["off", "force"]
+
+
+def _spd(n: int, seed: int):
+    """A sparse symmetric positive definite matrix (int32 CSR, as the flow's systems) with a few
+    duplicate-free off-diagonal entries per row."""
+    rng = np.random.default_rng(seed)
+    i = rng.integers(0, n, 4 * n)
+    j = rng.integers(0, n, 4 * n)
+    keep = i != j
+    W = sp.coo_matrix((rng.uniform(0.1, 1.0, keep.sum()), (i[keep], j[keep])), shape=(n, n)).tocsr()
+    W = W + W.T
+    A = (sp.diags(np.asarray(W.sum(axis=1)).ravel() + rng.uniform(0.5, 2.0, n)) - W).tocsr()
+    A.sum_duplicates()
+    A.indices = A.indices.astype(np.int32)
+    A.indptr = A.indptr.astype(np.int32)
+    return A
+
+
+@pytest.mark.parametrize("kernels", KERNELS)
+@pytest.mark.parametrize("cols", [[0, 1, 2], [0, 2], [1]])
+def test_member_residuals_are_the_dense_ones(kernels, cols):
+    """‖(A + δ I) y − b‖ and ‖y‖ with y = ±(x − base) / scale, for 21 members (more than one block of
+    the compiled kernel), against a dense product; a non-finite position gives a non-finite residual."""
+    rng = np.random.default_rng(5)
+    n, k = 300, 23
+    A = _spd(n, 1)
+    cols = np.array(cols)
+    out = rng.normal(size=(k, n, 3))
+    base = rng.normal(size=(n, 3))
+    inv_scale = rng.uniform(0.5, 2.0, n)
+    members = np.array([m for m in range(k) if m not in (3, 11)])
+    signs = np.where(rng.random(members.size) < 0.5, -1.0, 1.0)
+    deltas = rng.uniform(0.0, 3.0, members.size)
+    R0 = rng.normal(size=(cols.size, n))
+    out[members[4], 17, cols[-1]] = np.nan
+    with accel.use(kernels=kernels):
+        kern = accel.kernels("flow", n)
+        res, ynorm = kern.member_residuals(A, R0, out, base, inv_scale, cols, members, signs, deltas)
+    D = A.toarray()
+    for q, m in enumerate(members):
+        for t, j in enumerate(cols):
+            y = signs[q] * (out[m, :, j] - base[:, j]) * inv_scale
+            want = np.linalg.norm(D @ y + deltas[q] * y - R0[t])
+            if q == 4 and t == cols.size - 1:
+                assert not np.isfinite(res[q, t])
+                continue
+            assert res[q, t] == pytest.approx(want, rel=1e-12)
+            assert ynorm[q, t] == pytest.approx(np.linalg.norm(y), rel=1e-13)
+
+
+@pytest.mark.parametrize("kernels", KERNELS)
+@pytest.mark.parametrize("cols", [[0, 1, 2], [2]])
+def test_add_members_writes_base_plus_the_low_rank_product(kernels, cols):
+    """out[m] = base, plus ±(L_t W_t)[q] in column t, for members sharing shifts (one shift twice, one
+    never), ranks differing by column, more vertices than one block; untouched members stay as they
+    were; a shift whose values are not finite is reported."""
+    rng = np.random.default_rng(8)
+    n, k, nm = 9000, 7, 10
+    cols = np.array(cols)
+    out = rng.normal(size=(nm, n, 3))
+    before = out.copy()
+    base = rng.normal(size=(n, 3))
+    ranks = [4, 2, 5][:cols.size]
+    lefts = [rng.normal(size=(k, r)) for r in ranks]
+    Ws = [rng.normal(size=(r, n)) for r in ranks]
+    Ws[0][1, 4321] = np.inf                       # shift q's values at vertex 4321 are inf where L[q, 1] ≠ 0
+    lefts[0][2, 1] = 0.0                          # ... except shift 2: 0 · inf is NaN there too
+    members = np.array([0, 2, 3, 5, 6, 8, 9])
+    shift_of = np.array([0, 1, 1, 2, 4, 5, 6])     # shift 3 has no member, shift 1 two
+    signs = np.array([1.0, -1.0, 1.0, -1.0, 1.0, 1.0, -1.0])
+    with accel.use(kernels=kernels), np.errstate(invalid="ignore"):
+        kern = accel.kernels("flow", n)
+        finite = kern.add_members(out, base, cols, members, shift_of, signs, lefts, Ws, k)
+    assert not finite[[0, 1, 2, 4, 5, 6]].any() and finite[3]
+    for p, m in enumerate(members):
+        want = base.copy()
+        for t, j in enumerate(cols):
+            with np.errstate(invalid="ignore"):
+                want[:, j] += signs[p] * (lefts[t][shift_of[p]] @ Ws[t])
+        ok = np.isfinite(want)
+        assert np.array_equal(np.isfinite(out[m]), ok)
+        assert np.allclose(out[m][ok], want[ok], rtol=1e-13, atol=1e-13)
+    untouched = np.setdiff1d(np.arange(nm), members)
+    assert np.array_equal(out[untouched], before[untouched])
+
+
+@pytest.mark.parametrize("kernels", KERNELS)
+def test_family_takes_the_low_rank_path_and_its_check_finds_a_wrong_factor(kernels, monkeypatch):
+    """48 members on a 3,000-vertex mesh: the members come from the low-rank factors (``factors``,
+    not rows) and equal flow() within 1e-7 of the diagonal; a factor row of one shift scaled by
+    1 + 1e-5 is found by the true-residual check, that member redone as flow() and named."""
+    mesh = cube_sphere(22, mix=0.3, seed=3)
+    lams = np.arange(0.0, -240.0, -5.0)
+    real = paths.MemberSink.factors
+    corrupt = {"on": False}
+    seen = []
+
+    def factors(self, lefts, Ws):
+        seen.append(len(lefts))
+        if corrupt["on"]:
+            lefts = [L.copy() for L in lefts]
+            for L in lefts:
+                L[5] *= 1.0 + 1e-5          # shift 5 (ascending σ): the member of λ = −210
+        return real(self, lefts, Ws)
+
+    monkeypatch.setattr(paths.MemberSink, "factors", factors)
+    with accel.use(kernels=kernels):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", SolverWarning)
+            shapes, report = sf.family(mesh, lams, return_report=True)
+        assert seen and report.path == "multishift" and report.fallback_members == []
+        worst = max(float(np.abs(shapes[m] - sf.flow(mesh, float(lam)).vertices).max())
+                    for m, lam in enumerate(lams) if m % 7 == 0 or m == lams.size - 1)
+        assert worst <= 1e-7 * mesh.diagonal
+        corrupt["on"] = True
+        with pytest.warns(SolverWarning, match=r"1 member\(s\).*λ = -210"):
+            bad, report = sf.family(mesh, lams, return_report=True)
+        assert report.fallback_members == [42]
+        assert np.abs(bad[42] - sf.flow(mesh, -210.0).vertices).max() <= 1e-7 * mesh.diagonal
