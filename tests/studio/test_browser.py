@@ -103,7 +103,7 @@ def test_a_dab_a_second_tab_and_the_download(page, server):
         f.write(body)
     back = sf.load(path)
     np.testing.assert_array_equal(back.vertices, moved)
-    np.testing.assert_array_equal(back.weights, server.session.weights)
+    assert back.weights is None and (server.session.weights == 1.0).all()   # nothing painted: none written
 
 
 def test_the_server_is_local_and_serves_only_its_own_files(server):

@@ -169,9 +169,10 @@ def test_painting_at_a_previewed_lambda_keeps_the_preview_and_it_follows(page, s
 
 
 def test_the_page_says_what_a_format_drops_before_and_after_downloading(page, server):
-    """Spot's UVs and weights: OFF keeps neither (the note under the menu says so as the format is
-    chosen, and the blue banner after the download), PLY keeps both."""
+    """Spot's UVs and painted weights: OFF keeps neither (the note under the menu says so as the format
+    is chosen, and the blue banner after the download), PLY keeps both."""
     idle(page, server)
+    server.session.paint(server.session.vertices[0], 0.3, value=0.0)
     set_control(page, "format", "off")
     wait(page, "return (window.studio.formatNote || '').startsWith('⚠')")
     note = page.find_element("id", "format-note").text

@@ -54,6 +54,19 @@ def test_a_download_says_what_its_format_drops_and_losses_says_it_first(server):
         assert e.value.code == code, bad
 
 
+def test_weights_nobody_painted_are_not_said_lost(server):
+    """Nothing painted (every weight the default 1, none in the file): no format is said to drop
+    weights and the saved mesh carries none; after painting, OFF says so and PLY keeps them."""
+    s = server.session
+    lost = json.loads(get(server, "losses/spot-studio.off")[1])["losses"]
+    assert lost and not any("'weight'" in m for m in lost) and "'uv'" in lost[0]
+    assert s.mesh.weights is None and s.saved_mesh()[0].weights is None
+    s.paint(s.vertices[0], 0.3, value=0.25)
+    assert any("'weight'" in m for m in json.loads(get(server, "losses/spot-studio.off")[1])["losses"])
+    w = s.mesh.weights
+    assert w is not None and w.min() == 0.25 and w.max() == 1.0
+
+
 def test_the_front_message_turns_the_views_and_the_mirror_and_is_kept_in_the_mesh(server):
     s = server.session
     assert s.front == "-z"                                            # the bundled Spot's metadata

@@ -121,16 +121,20 @@ class StudioSession(SharpFeatures):
     @property
     def mesh(self) -> Mesh:
         """The current mesh on the input's own layout (a welded session's copies of a vertex all get
-        its position and weight), weights as its ``"weight"`` attribute, the input's attributes kept,
-        and :attr:`front` as ``metadata["front"]``."""
+        its position and weight), the weights as its ``"weight"`` attribute when the input had one or
+        any weight is not 1 (the default: a mesh nobody painted carries none, so no format is said to
+        drop them), the input's attributes kept, and :attr:`front` as ``metadata["front"]``."""
         with self._lock:
             V, w = self._V.copy(), self._w.copy()
+        if self._input.weights is None and np.all(w == 1.0):
+            w = None
         if not self.welded:
             out = self._base.with_vertices(V).with_weights(w)
         else:
             from ..geometry.weld import unweld
 
-            out = unweld(self._base.with_vertices(V), self._input, self._base).with_weights(w[self._base.weld_map])
+            out = unweld(self._base.with_vertices(V), self._input, self._base)
+            out = out.with_weights(None if w is None else w[self._base.weld_map])
         return out if self.front is None else out.with_metadata(front=self.front)
 
     @property
