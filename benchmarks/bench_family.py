@@ -57,7 +57,7 @@ TARGET = 1.5  # seconds, issue 6
 
 
 def load_mesh(levels: int):
-    src = HERE.parent.parent / "shared" / "meshes" / "spot_quad.obj"
+    src = Path(os.environ.get("SHAPEFLOW_SHARED", HERE.parent.parent / "shared")) / "meshes" / "spot_quad.obj"
     if not src.exists():
         src = Path(sf.example_path("spot"))
     m = sf.load(src)

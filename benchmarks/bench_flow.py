@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import statistics
 import subprocess
@@ -26,6 +27,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 CACHE = HERE / ".cache"
+SHARED = Path(os.environ.get("SHAPEFLOW_SHARED", HERE.parent.parent / "shared"))
 sys.path.insert(0, str(HERE))
 
 import shapeflow as sf  # noqa: E402
@@ -63,7 +65,7 @@ def suzanne_sub4():
     if blender_ref.available():
         v, s, i = blender_ref.suzanne_sub4()
         return v, s, i, "Blender subsurf"
-    shared = HERE.parent.parent / "shared" / "fixtures" / "blender" / "meshes" / "suzanne.npz"
+    shared = SHARED / "fixtures" / "blender" / "meshes" / "suzanne.npz"
     d = np.load(shared)
     m = sf.subdivide(sf.Mesh.from_csr(d["vertices"], d["face_sizes"], d["face_indices"]), 4)
     return m.vertices, m.face_sizes, m.face_indices, "shapeflow Catmull-Clark of the fixture Suzanne"
@@ -75,7 +77,7 @@ def million_mesh():
     if cached.exists():
         d = np.load(cached)
         return sf.Mesh.from_csr(d["vertices"], d["face_sizes"], d["face_indices"])
-    src = HERE.parent.parent / "shared" / "meshes" / "camel_tri.obj"
+    src = SHARED / "meshes" / "camel_tri.obj"
     m = sf.subdivide(sf.load(src), 3)
     CACHE.mkdir(exist_ok=True)
     np.savez(cached, vertices=m.vertices, face_sizes=m.face_sizes, face_indices=m.face_indices)

@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import gc
 import importlib.util
+import os
 import statistics
 import sys
 import time
@@ -49,7 +50,8 @@ def torus(n: int, m: int, R: float = 2.0, r: float = 0.7) -> sf.Mesh:
 
 
 def spot_sub2() -> sf.Mesh | None:
-    for shared in (ROOT.parent / "shared", ROOT / "shared"):
+    env = [Path(os.environ["SHAPEFLOW_SHARED"])] if os.environ.get("SHAPEFLOW_SHARED") else []
+    for shared in (*env, ROOT.parent / "shared", ROOT / "shared"):
         path = shared / "meshes" / "spot_quad.obj"
         if path.exists():
             break
