@@ -43,7 +43,7 @@ sys.path.insert(0, str(HERE.parent / "src"))
 
 import shapeflow as sf  # noqa: E402
 
-SHARED = HERE.parent.parent / "shared" / "meshes"
+SHARED = Path(os.environ.get("SHAPEFLOW_SHARED", HERE.parent.parent / "shared")) / "meshes"
 TARGETS = (800, 1800, 2600)
 
 

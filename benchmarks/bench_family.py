@@ -3,6 +3,7 @@
     python benchmarks/bench_family.py                  # family, 48 x flow(), Blender (sampled)
     python benchmarks/bench_family.py --blender-all    # time all 48 Blender evaluations (~4 s each)
     python benchmarks/bench_family.py --quick          # family only
+    python benchmarks/bench_family.py --blender-only   # the Blender evaluations alone (a Python with bpy)
     python benchmarks/bench_family.py --ratio          # family / flow() at its largest λ, Suzanne x3 (issue 35)
     python benchmarks/bench_family.py --check-cost     # the members' true-residual check: family with / without
 
@@ -57,7 +58,7 @@ TARGET = 1.5  # seconds, issue 6
 
 
 def load_mesh(levels: int):
-    src = HERE.parent.parent / "shared" / "meshes" / "spot_quad.obj"
+    src = Path(os.environ.get("SHAPEFLOW_SHARED", HERE.parent.parent / "shared")) / "meshes" / "spot_quad.obj"
     if not src.exists():
         src = Path(sf.example_path("spot"))
     m = sf.load(src)
@@ -86,6 +87,9 @@ def main(argv=None) -> int:
     ap.add_argument("--blender-samples", type=int, default=4, help="Blender evaluations timed (evenly spaced members)")
     ap.add_argument("--blender-all", action="store_true", help="time all 48 Blender evaluations")
     ap.add_argument("--no-blender", action="store_true")
+    ap.add_argument("--blender-only", action="store_true",
+                    help="only the Blender evaluations (for a Python with bpy but without the fast extra; "
+                         "benchmarks/measure_all.py runs it so)")
     ap.add_argument("--quick", action="store_true", help="family only (no flow() or Blender comparison)")
     ap.add_argument("--ratio", action="store_true", help="family / flow() at its largest λ on Suzanne (issue 35)")
     ap.add_argument("--check-cost", action="store_true", help="family with / without its true-residual check")
@@ -104,6 +108,10 @@ def main(argv=None) -> int:
     print(f"{origin}: {mesh.n_vertices:,} vertices, {mesh.n_faces:,} faces; {k} members "
           f"λ = {lams[0]:g}, {lams[1]:g}, ..., {lams[-1]:g}; 1 iteration, paper mode")
     print(f"  before: {load()}")
+    if args.blender_only:
+        ok = blender_rows(mesh, lams, sf.family(mesh, lams, compat="blender"), None, args)
+        print(f"  after: {load()}")
+        return 0 if ok else 2
 
     def row(label, seconds, extra=""):
         print(f"  {label:<46s} {seconds * 1e3:10.1f} ms  {extra}")
@@ -140,16 +148,22 @@ def main(argv=None) -> int:
         f"= {t_flows / t_warm:.1f}x the family (warm); slowest λ {per.max() * 1e3:.0f} ms")
     print(f"  {'':46s} agreement family vs flow(): max {worst:.1e} x diagonal")
 
-    # --- Blender
-    if args.no_blender:
-        print(f"  after: {load()}")
-        return 0
+    if not args.no_blender:
+        blender_rows(mesh, lams, shapes_bl, t_warm, args)
+    print(f"  after: {load()}")
+    return 0
+
+
+def blender_rows(mesh, lams, shapes_bl, t_warm, args) -> bool:
+    """48 evaluations of Blender's Laplacian Smooth (sampled unless --blender-all), against the family's
+    compat='blender' members; against the warm family's time when given.  False when bpy does not import."""
     import blender_ref
 
     if not blender_ref.available():
         print("  Blender: bpy not importable, skipped")
-        print(f"  after: {load()}")
-        return 0
+        return False
+    V, S, I = mesh.vertices, mesh.face_sizes, mesh.face_indices
+    k = lams.size
     idx = np.arange(k) if args.blender_all else np.unique(
         np.round(np.linspace(1, k - 1, max(1, args.blender_samples))).astype(int))
     secs, dev = [], 0.0
@@ -165,11 +179,11 @@ def main(argv=None) -> int:
         t_blender = float(np.mean(secs)) * k
         how = (f"EXTRAPOLATED: mean of {len(idx)} timed members (λ = "
                f"{', '.join(f'{lams[m]:g}' for m in idx)}) x {k}")
-    row(f"{k} x Blender Laplacian Smooth", t_blender, f"= {t_blender / t_warm:.0f}x the family (warm); {how}")
+    vs = f"= {t_blender / t_warm:.0f}x the family (warm); " if t_warm else ""
+    print(f"  {f'{k} x Blender Laplacian Smooth':<46s} {t_blender * 1e3:10.1f} ms  {vs}{how}")
     print(f"  {'':46s} per evaluation: median {statistics.median(secs) * 1e3:.0f} ms; "
           f"family(compat='blender') vs Blender: max {dev:.1e} x diagonal (Blender is float32)")
-    print(f"  after: {load()}")
-    return 0
+    return True
 
 
 def suzanne(levels: int):

@@ -3,6 +3,7 @@
     python benchmarks/bench_flow.py            # everything (Blender too when bpy imports)
     python benchmarks/bench_flow.py --quick    # skip the 1M-vertex case and Blender
     python benchmarks/bench_flow.py --scan 10M # a generated triangle scan: load, smooth, save, peak memory
+    python benchmarks/bench_flow.py --blender-only   # Blender's modifier alone (a Python with bpy)
 
 Prints medians over ``--repeat`` runs and ratios.  Times exclude file I/O;
 "fresh" includes building the Mesh from arrays (validation, topology, operator
@@ -15,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import statistics
 import subprocess
@@ -26,6 +28,7 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 CACHE = HERE / ".cache"
+SHARED = Path(os.environ.get("SHAPEFLOW_SHARED", HERE.parent.parent / "shared"))
 sys.path.insert(0, str(HERE))
 
 import shapeflow as sf  # noqa: E402
@@ -63,7 +66,7 @@ def suzanne_sub4():
     if blender_ref.available():
         v, s, i = blender_ref.suzanne_sub4()
         return v, s, i, "Blender subsurf"
-    shared = HERE.parent.parent / "shared" / "fixtures" / "blender" / "meshes" / "suzanne.npz"
+    shared = SHARED / "fixtures" / "blender" / "meshes" / "suzanne.npz"
     d = np.load(shared)
     m = sf.subdivide(sf.Mesh.from_csr(d["vertices"], d["face_sizes"], d["face_indices"]), 4)
     return m.vertices, m.face_sizes, m.face_indices, "shapeflow Catmull-Clark of the fixture Suzanne"
@@ -75,7 +78,7 @@ def million_mesh():
     if cached.exists():
         d = np.load(cached)
         return sf.Mesh.from_csr(d["vertices"], d["face_sizes"], d["face_indices"])
-    src = HERE.parent.parent / "shared" / "meshes" / "camel_tri.obj"
+    src = SHARED / "meshes" / "camel_tri.obj"
     m = sf.subdivide(sf.load(src), 3)
     CACHE.mkdir(exist_ok=True)
     np.savez(cached, vertices=m.vertices, face_sizes=m.face_sizes, face_indices=m.face_indices)
@@ -204,11 +207,35 @@ def scan(count: str, folder: str | None) -> int:
     return 0
 
 
+def blender_rows(V, S, I, t_fresh=None, t_warm=None) -> bool:
+    """Blender's Laplacian Smooth (λ=1, 1 iteration, median of 3) and compat='blender' against it;
+    the ratios when shapeflow's times are given.  False when bpy does not import."""
+    import blender_ref
+
+    if not blender_ref.available():
+        return False
+    pos, t_blender = blender_ref.laplacian_smooth(V, S, I, lambda_factor=1.0, iterations=1,
+                                                  use_normalized=True, repeat=3)
+    ours = sf.flow(sf.Mesh.from_csr(V, S, I), 1.0, compat="blender").vertices
+    err = np.abs(ours - pos).max() / np.linalg.norm(np.ptp(V, axis=0))
+    import bpy
+
+    print(f"  {f'Blender {bpy.app.version_string} Laplacian Smooth, λ=1, 1 iteration':<52s} "
+          f"{t_blender * 1e3:9.1f} ms  (median of 3)")
+    ratios = (f"ratio Blender / shapeflow fresh: {t_blender / t_fresh:.1f}x, warm: {t_blender / t_warm:.1f}x; "
+              if t_fresh else "")
+    print(f"  {ratios}compat='blender' agrees to {err:.1e} x diagonal")
+    return True
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeat", type=int, default=11)
     ap.add_argument("--quick", action="store_true", help="skip the 1M-vertex case and Blender")
     ap.add_argument("--no-blender", action="store_true")
+    ap.add_argument("--blender-only", action="store_true",
+                    help="only Blender's modifier and compat='blender' against it (for a Python with bpy "
+                         "but without the fast extra; benchmarks/measure_all.py runs it so)")
     ap.add_argument("--child-million", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--scan", metavar="N", help="only the scan case: a generated triangle torus of N vertices "
                                                  "(e.g. 10M) through load, one flow step and save")
@@ -227,6 +254,8 @@ def main(argv=None) -> int:
     R = args.repeat
     V, S, I, origin = suzanne_sub4()
     print(f"Suzanne subdivided 4x: {V.shape[0]:,} vertices, {S.size:,} faces ({origin}); medians of {R} runs")
+    if args.blender_only:
+        return 0 if blender_rows(V, S, I) else 2
     rows = []
 
     def row(label, seconds, extra=""):
@@ -275,17 +304,7 @@ def main(argv=None) -> int:
             row("  without compiled kernels: λ=1, warm", tn1)
             row("  without compiled kernels: 10 iterations, warm", tn10, f"= {tn10 / tn1:.2f}x one iteration")
 
-    import blender_ref
-
-    if not (args.quick or args.no_blender) and blender_ref.available():
-        pos, t_blender = blender_ref.laplacian_smooth(V, S, I, lambda_factor=1.0, iterations=1,
-                                                      use_normalized=True, repeat=3)
-        ours = sf.flow(sf.Mesh.from_csr(V, S, I), 1.0, compat="blender").vertices
-        err = np.abs(ours - pos).max() / np.linalg.norm(np.ptp(V, axis=0))
-        print(f"  {'Blender 5.0.1 Laplacian Smooth, λ=1, 1 iteration':<52s} {t_blender * 1e3:9.1f} ms  (median of 3)")
-        print(f"  ratio Blender / shapeflow fresh: {t_blender / t_fresh:.1f}x, warm: {t_blender / t_warm:.1f}x; "
-              f"compat='blender' agrees to {err:.1e} x diagonal")
-    else:
+    if args.quick or args.no_blender or not blender_rows(V, S, I, t_fresh, t_warm):
         print("  Blender: not measured (bpy not importable or --quick/--no-blender)")
 
     if not args.quick:

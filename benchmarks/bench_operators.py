@@ -14,6 +14,7 @@ Medians of --repeat runs.
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import time
@@ -25,7 +26,7 @@ sys.path.insert(0, str(HERE))
 import shapeflow as sf  # noqa: E402
 from shapeflow.operators.cotan import assemble as _assemble  # noqa: E402
 
-SHARED = HERE.parent.parent / "shared" / "meshes"
+SHARED = Path(os.environ.get("SHAPEFLOW_SHARED", HERE.parent.parent / "shared")) / "meshes"
 
 
 def med(fn, repeat):

@@ -17,7 +17,7 @@ Input: a 200 × 200 quad torus (generated, 40,000 vertices, closed) and, when
 ``shapeflow.io`` can read it, Keenan Crane's Spot (``shared/meshes/spot_quad.obj``)
 subdivided twice (46,850 vertices, with extraordinary vertices).
 
-Run: ``python benchmarks/bench_subdivision.py [--repeat N] [--size N] [--no-blender]``.
+Run: ``python benchmarks/bench_subdivision.py [--repeat N] [--size N] [--no-blender | --blender-only]``.
 """
 
 from __future__ import annotations
@@ -25,6 +25,7 @@ from __future__ import annotations
 import argparse
 import gc
 import importlib.util
+import os
 import statistics
 import sys
 import time
@@ -49,7 +50,8 @@ def torus(n: int, m: int, R: float = 2.0, r: float = 0.7) -> sf.Mesh:
 
 
 def spot_sub2() -> sf.Mesh | None:
-    for shared in (ROOT.parent / "shared", ROOT / "shared"):
+    env = [Path(os.environ["SHAPEFLOW_SHARED"])] if os.environ.get("SHAPEFLOW_SHARED") else []
+    for shared in (*env, ROOT.parent / "shared", ROOT / "shared"):
         path = shared / "meshes" / "spot_quad.obj"
         if path.exists():
             break
@@ -88,8 +90,11 @@ def blender_harness():
     return mod, ""
 
 
-def bench(name: str, mesh: sf.Mesh, repeat: int, br) -> None:
+def bench(name: str, mesh: sf.Mesh, repeat: int, br, blender_only: bool = False) -> None:
     print(f"\n{name}: {mesh.n_vertices:,} vertices, {mesh.n_faces:,} faces {mesh.face_count_by_size()}")
+    if blender_only:
+        blender_row(mesh, subdivide(mesh, 2), repeat, br)
+        return
     rng = np.random.default_rng(0)
     weighted = mesh.with_weights(rng.uniform(size=mesh.n_vertices))
 
@@ -107,15 +112,22 @@ def bench(name: str, mesh: sf.Mesh, repeat: int, br) -> None:
     print(f"  subdivision_matrix(levels=2)     {t_mat:8.3f} s  ({S.shape[0]:,} x {S.shape[1]:,}, nnz {S.nnz:,})")
     t_apply, _ = median_time(lambda: S @ mesh.vertices, repeat)
     print(f"  S @ V (one animated frame)       {t_apply:8.3f} s")
+    t_bl = blender_row(mesh, out, repeat, br)
+    if t_bl:
+        print(f"  ratio shapeflow / Blender        {t_sub / t_bl:8.2f}   (S @ V alone: {t_apply / t_bl:.3f})")
+
+
+def blender_row(mesh: sf.Mesh, out: sf.Mesh, repeat: int, br) -> float | None:
+    """Blender's Subdivision Surface (level 2) on ``mesh``, median seconds (None without bpy)."""
     if br is None:
-        return
+        return None
     V, fs, fi = mesh.vertices, mesh.face_sizes, mesh.face_indices
     P, bfs, _, _, t_bl = br.subdivision_surface(V, fs, fi, levels=2, subdivision_type="CATMULL_CLARK",
                                                 boundary_smooth="ALL", use_limit_surface=False, repeat=repeat)
     assert len(P) == out.n_vertices and len(bfs) == out.n_faces
     print(f"  Blender Subdivision Surface      {t_bl:8.3f} s  (levels=2, no limit surface, no creases; "
           f"median of {repeat})")
-    print(f"  ratio shapeflow / Blender        {t_sub / t_bl:8.2f}   (S @ V alone: {t_apply / t_bl:.3f})")
+    return t_bl
 
 
 def main(argv=None) -> int:
@@ -123,15 +135,20 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--size", type=int, default=200, help="torus of SIZE × SIZE vertices (default 200)")
     ap.add_argument("--no-blender", action="store_true", help="do not time Blender even if bpy is importable")
+    ap.add_argument("--blender-only", action="store_true",
+                    help="only Blender's modifier (for a Python with bpy but without the fast extra; "
+                         "benchmarks/measure_all.py runs it so)")
     args = ap.parse_args(argv)
 
     br, why = (None, "--no-blender") if args.no_blender else blender_harness()
     print(f"shapeflow {sf.__version__}, numpy {np.__version__}; median of {args.repeat} runs")
     print("Blender: " + ("bpy " + __import__("bpy").app.version_string if br else f"not timed ({why})"))
-    bench(f"quad torus {args.size}x{args.size}", torus(args.size, args.size), args.repeat, br)
+    if args.blender_only and br is None:
+        return 2
+    bench(f"quad torus {args.size}x{args.size}", torus(args.size, args.size), args.repeat, br, args.blender_only)
     spot = spot_sub2()
     if spot is not None:
-        bench("spot_quad.obj subdivided twice", spot, args.repeat, br)
+        bench("spot_quad.obj subdivided twice", spot, args.repeat, br, args.blender_only)
     return 0
 
 

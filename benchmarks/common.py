@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import statistics
 import sys
 import time
@@ -9,7 +10,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "src"))
-SHARED = ROOT.parent / "shared" / "meshes"
+SHARED = Path(os.environ.get("SHAPEFLOW_SHARED", ROOT.parent / "shared")) / "meshes"   # or $SHAPEFLOW_SHARED/meshes
 
 
 def median_time(fn, reps: int) -> float:
