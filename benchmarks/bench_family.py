@@ -204,7 +204,7 @@ def check_cost(rounds: int, levels: int) -> int:
     paths = importlib.import_module("shapeflow.flow.family_paths")
     real = paths.check_members
 
-    def none_wrong(out, base, lams, ax, plan, As, R0, members, rtol):
+    def none_wrong(out, base, lams, ax, plan, system, members, rtol):
         return members[:0]
 
     mesh, src = suzanne(levels)

@@ -96,6 +96,8 @@ STEPS: tuple[Step, ...] = (
          ("bench_family.py", "--blender-only", "--blender-samples", "1"), 12, 8, python="bpy", needs=("bpy",)),
     Step("family-ratio", ("bench_family.py", "--ratio", "--rounds", "15"),
          ("bench_family.py", "--ratio", "--rounds", "1"), 44, 9),
+    Step("family-ratio-126k", ("bench_family.py", "--ratio", "--rounds", "5", "--suzanne-levels", "4"), None, 70, 0,
+         what="the same ratio on Suzanne ×4 (126,290 vertices), where the default kernels are the compiled ones"),
     Step("family-check-cost", ("bench_family.py", "--check-cost", "--rounds", "15"),
          ("bench_family.py", "--check-cost", "--rounds", "1"), 25, 4),
     Step("brush", ("bench_brush.py",), ("bench_brush.py", "--quick"), 20, 8, runs=3),
