@@ -47,8 +47,8 @@ compared per coordinate with ``10 × rtol ‖b‖`` (the factor covers the gap
 between the recurrence and the true residual: rounding, ~ε κ, and the
 low-rank fold; measured below 1 × rtol on the figure-1 families) plus what
 rounding the positions alone leaves (ε (‖|M|‖∞ + σ)(‖C_1^{1/2} base‖ + ‖Y‖)),
-in blocks of 8 members with one sparse product each
-(:func:`~shapeflow.flow.family_paths.check_members`).  A member that fails
+by the flow kernel family's ``member_residuals`` (compiled: 16 members per pass over the matrix;
+:func:`~shapeflow.flow.family_paths.check_members`).  A member that fails
 (a wrong matrix or order, a fold that went astray) is solved again on its own
 exactly as ``flow()`` does (with that path's own checks and fallback), and a
 :class:`~shapeflow.errors.SolverWarning` names how many members and their λ.
