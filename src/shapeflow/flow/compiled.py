@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 from numba import get_num_threads, njit, prange
 
+from ..linalg.compiled import int32_csr
 from .kernels import FlowKernels, no_coupling
 
 
@@ -446,8 +447,9 @@ class FlowNumba(FlowKernels):
         return step_result(X, V, factor, flip, axes, out)
 
     def member_residuals(self, As, R0, out, base, inv_scale, cols, members, signs, deltas):
-        if not (int32_csr_matrix(As) and out.dtype == base.dtype == np.float64 and out.ndim == 3
-                and out.shape[2] == 3 and base.shape[1] == 3 and out.flags.c_contiguous and 1 <= cols.size <= 3):
+        if not (getattr(As, "format", None) == "csr" and int32_csr(As) and out.dtype == base.dtype == np.float64
+                and out.ndim == 3 and out.shape[2] == 3 and base.shape[1] == 3 and out.flags.c_contiguous
+                and 1 <= cols.size <= 3):
             return super().member_residuals(As, R0, out, base, inv_scale, cols, members, signs, deltas)
         return member_residuals(As.indptr, As.indices, np.ascontiguousarray(As.data, dtype=np.float64), R0, out,
                                 base, np.ascontiguousarray(inv_scale, dtype=np.float64), cols, members, signs, deltas)
@@ -471,9 +473,3 @@ class FlowNumba(FlowKernels):
         if not (A.dtype == B.dtype == np.float64 and A.ndim == B.ndim == 2 and A.shape[1] == 3):
             return super().max_row_distance(A, B, chunk)
         return float(max_row_distance(A, B))
-
-
-def int32_csr_matrix(A) -> bool:
-    """Whether A is a SciPy CSR matrix with int32 index arrays (what the compiled products take)."""
-    return (getattr(A, "format", None) == "csr" and A.indices.dtype == np.int32
-            and A.indptr.dtype == np.int32)

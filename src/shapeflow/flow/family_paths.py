@@ -254,15 +254,13 @@ def check_members(out: np.ndarray, base: np.ndarray, lams: np.ndarray, ax: np.nd
     inv_scale = 1.0 / plan.scale
     deltas = (plan.sigmas - plan.sigmas[0])[plan.member_shift[members]]
     signs = np.where(lams[members] >= 0, 1.0, -1.0)
-    # ‖|As|‖∞ from the stored entries (SciPy's abs() sums duplicates in place, a change to As's index
-    # arrays, which a system may share with the operator pattern's caches)
-    rows = np.repeat(np.arange(As.shape[0]), np.diff(As.indptr))
-    norm_a = float(np.bincount(rows, np.abs(As.data), minlength=As.shape[0]).max())
+    kern = accel.kernels("flow", base.shape[0])
+    n = base.shape[0]
+    norm_a = kern.scaled_abs_row_max(As, np.ones(n), np.ones(n, bool))       # ‖|As|‖∞
     eps = np.finfo(np.float64).eps
     tol = TRUE_RESIDUAL_FACTOR * rtol * np.sqrt(np.einsum("ji,ji->j", R0, R0))          # (c,)
     scaled_base = base[:, cols] * inv_scale[:, None]
     base_size = np.sqrt(np.einsum("ij,ij->j", scaled_base, scaled_base))
-    kern = accel.kernels("flow", base.shape[0])
     res, ynorm = kern.member_residuals(As, R0, out, base, inv_scale, cols, members, signs, deltas)
     floor = TRUE_RESIDUAL_FACTOR * eps * (norm_a + deltas)[:, None] * (base_size + ynorm)
     return members[~(res <= tol + floor).all(axis=1)]
