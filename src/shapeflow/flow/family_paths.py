@@ -206,12 +206,11 @@ class MemberSink:
     def factors(self, lefts: list, Ws: list) -> None:
         """Every shift's solution from its low-rank factors: column t is ``lefts[t] @ Ws[t]``."""
         k = len(self.member_of_shift)
-        shift_of = np.concatenate([np.full(ms.size, i) for i, ms in enumerate(self.member_of_shift)] or [[]])
-        members = np.concatenate(list(self.member_of_shift) or [[]]).astype(np.int64)
+        members = np.concatenate(self.member_of_shift).astype(np.int64)
+        shift_of = np.repeat(np.arange(k), [ms.size for ms in self.member_of_shift])
         signs = np.where(self.plus[members], 1.0, -1.0)
         kern = accel.kernels("flow", self.out.shape[1])
-        self.finite[:] = kern.add_members(self.out, self.base, self.cols, members, shift_of.astype(np.int64),
-                                          signs, lefts, Ws, k)
+        self.finite[:] = kern.add_members(self.out, self.base, self.cols, members, shift_of, signs, lefts, Ws, k)
         self.filled[members] = True
 
 
