@@ -24,15 +24,18 @@ from shapeflow.linalg.multishift import multishift_cg  # noqa: E402
 
 @pytest.fixture(autouse=True)
 def jacobi_flow(monkeypatch):
-    """The family's multishift CG is Jacobi-preconditioned; the flow it is compared with here is too, so
-    both run the same iterates and agree to rounding (``TOL``).  The flow's default on the compiled path,
-    symmetric Gauss–Seidel, meets the same rtol by other iterates: tests/linalg/test_sgs.py."""
+    """The flow compared with here runs Jacobi-preconditioned CG (its default on the compiled path,
+    symmetric Gauss–Seidel, is tested in tests/linalg/test_sgs.py).  The family's shared CG runs other
+    iterates (a polynomial preconditioner, degree ``family_paths.SHARED_DEGREE``), so the two agree to
+    the solves' tolerance, not to rounding (``TOL``)."""
     monkeypatch.setattr(spd, "DEFAULT_PRECONDITIONER", "jacobi")
 
 
 #: mixed signs, zeros, a repeated λ and a ±λ pair (one shift for both)
 LAMS = [0.0, -5.0, 5.0, -50.0, -120.0, 30.0, 0.0, -235.0, -5.0]
-TOL = 1e-8
+#: both solutions meet rtol = 1e-8 by different iterates: the members agree with flow() within 1e-7
+#: of the diagonal (issue 35's bound; the largest deviation on these meshes is ~1.1e-8, 2026-11-26)
+TOL = 1e-7
 
 
 def _weights(n: int, seed: int = 1) -> np.ndarray:
@@ -84,8 +87,10 @@ def test_family_matches_flow(name, variant):
 
 
 @requires_shared
-def test_unweighted_family_reproduces_flow_cg():
-    """Without weights the scaled norm is flow()'s Jacobi norm: same iterates, same stopping."""
+def test_unweighted_family_reproduces_flow_cg(monkeypatch):
+    """Without weights and without the polynomial preconditioner the scaled norm is flow()'s Jacobi
+    norm: same iterates, same stopping."""
+    monkeypatch.setattr(paths, "SHARED_DEGREE", 0)
     mesh = sf.load(MESHES / "spot_quad.obj")
     lams = [-5.0, -50.0, -235.0]
     shapes, report = sf.family(mesh, lams, return_report=True)
@@ -96,6 +101,25 @@ def test_unweighted_family_reproduces_flow_cg():
         # same iterates up to rounding; a residual right at the tolerance may stop one step apart
         tol = 1e-12 if gap == 0 else TOL
         assert np.abs(shapes[m] - ref.vertices).max() <= tol * mesh.diagonal
+
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+def test_polynomial_preconditioner_cuts_the_shared_iterations(kernels, monkeypatch):
+    """The shared CG with its degree-2 polynomial preconditioner (three products an iteration) needs
+    at most half the iterations of the plain one on the figure-1 family (theory: about a third), and
+    both meet flow() within ``TOL``."""
+    mesh = sf.load(MESHES / "spot_quad.obj")
+    lams = np.arange(0.0, -240.0, -5.0)
+    its = {}
+    with sf.accel.use(kernels=kernels):
+        for degree in (0, 2):
+            monkeypatch.setattr(paths, "SHARED_DEGREE", degree)
+            report, _ = _agree(mesh, lams[::6])
+            assert report.path == "multishift" and report.fallback_members == []
+            assert report.krylov_degree == degree
+            assert ("of 3 products" in report.summary()) == (degree == 2)
+            its[degree] = report.krylov_iterations
+    assert its[2] <= 0.5 * its[0], its
 
 
 def test_generated_meshes_match_flow():

@@ -83,8 +83,8 @@ def test_add_members_writes_base_plus_the_low_rank_product(kernels, cols):
     base = rng.normal(size=(n, 3))
     ranks = [4, 2, 5][:cols.size]
     lefts = [rng.normal(size=(k, r)) for r in ranks]
-    Ws = [rng.normal(size=(r, n)) for r in ranks]
-    Ws[0][1, 4321] = np.inf                       # shift q's values at vertex 4321 are inf where L[q, 1] ≠ 0
+    Ws = [rng.normal(size=(n, r)) for r in ranks]      # vertex-major
+    Ws[0][4321, 1] = np.inf                       # shift q's values at vertex 4321 are inf where L[q, 1] ≠ 0
     lefts[0][2, 1] = 0.0                          # ... except shift 2: 0 · inf is NaN there too
     members = np.array([0, 2, 3, 5, 6, 8, 9])
     shift_of = np.array([0, 1, 1, 2, 4, 5, 6])     # shift 3 has no member, shift 1 two
@@ -97,12 +97,36 @@ def test_add_members_writes_base_plus_the_low_rank_product(kernels, cols):
         want = base.copy()
         for t, j in enumerate(cols):
             with np.errstate(invalid="ignore"):
-                want[:, j] += signs[p] * (lefts[t][shift_of[p]] @ Ws[t])
+                want[:, j] += signs[p] * (lefts[t][shift_of[p]] @ Ws[t].T)
         ok = np.isfinite(want)
         assert np.array_equal(np.isfinite(out[m]), ok)
         assert np.allclose(out[m][ok], want[ok], rtol=1e-13, atol=1e-13)
     untouched = np.setdiff1d(np.arange(nm), members)
     assert np.array_equal(out[untouched], before[untouched])
+
+
+@pytest.mark.parametrize("kernels", KERNELS)
+def test_add_members_takes_pieces_side_by_side_and_rows_in_any_order(kernels):
+    """Ws[t] as a tuple of pieces (the factor's columns side by side) and ``take`` (the rows' order):
+    the same members as the one array ``np.hstack(pieces)[take]``."""
+    rng = np.random.default_rng(9)
+    n, k = 9000, 5
+    cols = np.array([0, 2])
+    base = rng.normal(size=(n, 3))
+    take = rng.permutation(n)
+    pieces = [tuple(rng.normal(size=(n, r)) for r in (3, 3, 3)), tuple(rng.normal(size=(n, r)) for r in (2, 2))]
+    lefts = [rng.normal(size=(k, 9)), rng.normal(size=(k, 4))]
+    members, shift_of, signs = np.arange(k), np.arange(k), np.array([1.0, -1.0, 1.0, 1.0, -1.0])
+    out = np.zeros((k, n, 3))
+    with accel.use(kernels=kernels):
+        kern = accel.kernels("flow", n)
+        finite = kern.add_members(out, base, cols, members, shift_of, signs, lefts, pieces, k, take)
+    assert finite.all()
+    for p in range(k):
+        want = base.copy()
+        for t, j in enumerate(cols):
+            want[:, j] += signs[p] * (np.hstack(pieces[t])[take] @ lefts[t][p])
+        assert np.allclose(out[p], want, rtol=1e-13, atol=1e-13)
 
 
 @pytest.mark.parametrize("kernels", KERNELS)
@@ -116,13 +140,13 @@ def test_family_takes_the_low_rank_path_and_its_check_finds_a_wrong_factor(kerne
     corrupt = {"on": False}
     seen = []
 
-    def factors(self, lefts, Ws):
+    def factors(self, lefts, Ws, take=None):
         seen.append(len(lefts))
         if corrupt["on"]:
             lefts = [L.copy() for L in lefts]
             for L in lefts:
                 L[5] *= 1.0 + 1e-5          # shift 5 (ascending σ): the member of λ = −210
-        return real(self, lefts, Ws)
+        return real(self, lefts, Ws, take)
 
     monkeypatch.setattr(paths.MemberSink, "factors", factors)
     with accel.use(kernels=kernels):

@@ -48,12 +48,14 @@ def problem():
 
 @pytest.mark.parametrize("kernels", ["off", "force"])
 @pytest.mark.parametrize("low_rank", [True, False])
-def test_members_match_direct_solves(problem, kernels, low_rank):
+@pytest.mark.parametrize("degree", [0, 2])
+def test_members_match_direct_solves(problem, kernels, low_rank, degree):
     A, B, ref = problem
     with accel.use(kernels=kernels):
-        res = multishift_cg(A, B, SHIFTS, rtol=1e-8, low_rank=low_rank)
-    assert res.converged.all()
-    assert (max(res.ranks) > 0) == low_rank         # the factorisation ran where asked
+        res = multishift_cg(A, B, SHIFTS, rtol=1e-8, low_rank=low_rank, degree=degree)
+    assert res.converged.all() and res.degree == degree
+    if degree == 0 or not low_rank:                 # (degree 2 on 41 shifts: full rank, see below)
+        assert (max(res.ranks) > 0) == low_rank     # the factorisation ran where asked
     for i in range(SHIFTS.size):
         for j in range(3):
             x = ref[j, i]
@@ -63,47 +65,100 @@ def test_members_match_direct_solves(problem, kernels, low_rank):
     assert its[HARDEST[0]] == its[HARDEST[1]] == its.max()
 
 
-def test_compiled_seed_is_the_numpy_twin(problem):
+#: enough shifts that the factorisation pays with the polynomial preconditioner's shorter Krylov space
+MANY = np.geomspace(0.004, 4.0, 80)
+
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+def test_low_rank_members_of_the_polynomial_preconditioner_match_direct_solves(problem, kernels):
+    A, B, _ = problem
+    with accel.use(kernels=kernels):
+        res = multishift_cg(A, B, MANY, rtol=1e-8, degree=2)
+    assert res.converged.all() and min(res.ranks) > 0
+    some = np.arange(0, MANY.size, 9)
+    ref = direct(A, B, MANY[some])
+    for q, i in enumerate(some):
+        for j in range(3):
+            x = ref[j, q]
+            assert np.abs(res.X[j, i] - x).max() <= 1e-6 * np.abs(x).max(), (i, j)
+
+
+@pytest.mark.parametrize("degree", [0, 2])
+def test_compiled_seed_is_the_numpy_twin(problem, degree):
     """Same formulas in the same order: the same iterations, iterates equal to rounding."""
     A, B, _ = problem
     with accel.use(kernels="off"):
-        ref = multishift_cg(A, B[:2], SHIFTS, rtol=1e-8)
+        ref = multishift_cg(A, B[:2], SHIFTS, rtol=1e-8, degree=degree)
     with accel.use(kernels="force"):
-        got = multishift_cg(A, B[:2], SHIFTS, rtol=1e-8)
+        got = multishift_cg(A, B[:2], SHIFTS, rtol=1e-8, degree=degree)
     assert got.krylov_iterations == ref.krylov_iterations
     assert np.array_equal(got.iterations, ref.iterations)
     assert np.abs(got.X - ref.X).max() <= 1e-11 * np.abs(ref.X).max()
 
 
 @pytest.mark.parametrize("kernels", ["off", "force"])
-def test_replayed_blocks_equal_one_block(problem, kernels):
+@pytest.mark.parametrize("degree", [0, 2])
+def test_replayed_blocks_equal_one_block(problem, kernels, degree):
     """Residual blocks beyond the first are recomputed from saved states: the result does not change."""
     A, B, _ = problem
     with accel.use(kernels=kernels):
-        one = multishift_cg(A, B, SHIFTS, rtol=1e-8)
-        many = multishift_cg(A, B, SHIFTS, rtol=1e-8, block_bytes=8 * 3 * A.shape[0] * 23)
+        one = multishift_cg(A, B, SHIFTS, rtol=1e-8, degree=degree)
+        many = multishift_cg(A, B, SHIFTS, rtol=1e-8, degree=degree,
+                             block_bytes=8 * 3 * A.shape[0] * (23 if degree == 0 else 9))
     assert one.flushes == 1 and many.flushes > 3 and many.replayed > 0
     assert np.abs(many.X - one.X).max() <= 1e-12 * np.abs(one.X).max()
 
 
-def test_emit_hands_over_every_member_transformed(problem):
-    """``emit`` with ``post=(scale, take)``: every shift once, as (scale · x)[take]."""
+@pytest.mark.parametrize("degree", [0, 2])
+def test_emit_hands_over_every_member_transformed(problem, degree):
+    """``emit`` with ``post=(scale, take)``: every shift once, as (scale · x)[take]; an ``emit`` with a
+    ``factors`` method gets the low-rank factors, whose product is the same."""
     A, B, _ = problem
     n = A.shape[0]
     rng = np.random.default_rng(4)
     scale, take = rng.uniform(0.5, 2.0, n), rng.permutation(n)
-    full = multishift_cg(A, B, SHIFTS, rtol=1e-8)
-    seen = np.zeros((3, SHIFTS.size, n))
-    count = np.zeros(SHIFTS.size, int)
+    shifts = SHIFTS if degree == 0 else MANY
+    full = multishift_cg(A, B, shifts, rtol=1e-8, degree=degree)
+    seen = np.zeros((3, shifts.size, n))
+    count = np.zeros(shifts.size, int)
 
     def emit(shifts, rows):
         seen[:, shifts] = rows
         count[shifts] += 1
 
-    res = multishift_cg(A, B, SHIFTS, rtol=1e-8, emit=emit, post=(scale, take))
+    res = multishift_cg(A, B, shifts, rtol=1e-8, emit=emit, post=(scale, take), degree=degree)
     assert res.X is None and (count == 1).all()
     want = (full.X * scale)[:, :, take]
     assert np.abs(seen - want).max() <= 1e-12 * np.abs(want).max()
+
+    class Receiver:
+        def __call__(self, shifts, rows):
+            raise AssertionError("rows handed over although every column was factorised")
+
+        def factors(self, lefts, Ws, take_rows):
+            for j in range(3):
+                seen[j] = (np.hstack(Ws[j])[take_rows] @ lefts[j].T).T
+
+    seen[:] = 0.0
+    res = multishift_cg(A, B, shifts, rtol=1e-8, emit=Receiver(), post=(scale, take), degree=degree)
+    assert min(res.ranks) > 0
+    assert np.abs(seen - want).max() <= 1e-12 * np.abs(want).max()
+
+
+def test_polynomial_preconditioner_cuts_the_iterations(problem):
+    """Degree 2 (three products an iteration) against none on the grid's shifted systems: at most half
+    the iterations (theory: about a third), the hardest shift still the last to converge."""
+    A, B, _ = problem
+    its = {d: multishift_cg(A, B, SHIFTS, rtol=1e-8, degree=d) for d in (0, 2)}
+    assert its[2].krylov_iterations <= 0.5 * its[0].krylov_iterations
+    assert its[2].iterations[HARDEST[0], 0] == its[2].iterations[:, 0].max()
+
+
+def test_degree_must_be_a_non_negative_integer(problem):
+    A, B, _ = problem
+    for bad in (-1, 1.5):
+        with pytest.raises(ValueError, match="degree"):
+            multishift_cg(A, B, SHIFTS, degree=bad)
 
 
 def test_shifted_residuals_are_the_dense_ones(problem):

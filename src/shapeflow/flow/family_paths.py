@@ -32,6 +32,11 @@ __all__ = ["SHARED_CG_MAX_RATIO", "SharedPlan", "plan_shared_solve", "boundary_s
 #: much sooner, and members that do not converge are redone separately anyway)
 SHARED_CG_MAX_RATIO = 3.0
 
+#: degree of the shared CG's polynomial preconditioner (:func:`~shapeflow.linalg.multishift.multishift_cg`):
+#: on the figure-1 family on Suzanne ×3, 69 iterations of 3 products instead of 209 of one, a third of the
+#: stored residuals (docs/performance.md, "The family's shared solve")
+SHARED_DEGREE = 2
+
 
 @dataclass
 class SharedPlan:
@@ -149,6 +154,7 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
         res, system = run_shared(flow_solver, operator, plan, X, ax, sink, on_progress)
         out[solved & ~sink.filled] = base
         report.krylov_iterations = res.krylov_iterations
+        report.krylov_degree = getattr(res, "degree", 0)
         ok = res.converged.all(axis=1) & finite
         its = np.where(res.converged, res.iterations, res.krylov_iterations).max(axis=1)
         report.member_iterations[solved] = its[plan.member_shift[solved]]
@@ -203,14 +209,16 @@ class MemberSink:
                     else:
                         out[m, :, j] -= rows[t, q]
 
-    def factors(self, lefts: list, Ws: list) -> None:
-        """Every shift's solution from its low-rank factors: column t is ``lefts[t] @ Ws[t]``."""
+    def factors(self, lefts: list, Ws: list, take=None) -> None:
+        """Every shift's solution from its low-rank factors: column t is ``(lefts[t] @ Ws[t]ᵀ)`` with rows
+        ``take`` (Ws[t] a tuple of (n, ·) pieces side by side; see ``multishift_cg``'s ``emit``)."""
         k = len(self.member_of_shift)
         members = np.concatenate(self.member_of_shift).astype(np.int64)
         shift_of = np.repeat(np.arange(k), [ms.size for ms in self.member_of_shift])
         signs = np.where(self.plus[members], 1.0, -1.0)
         kern = accel.kernels("flow", self.out.shape[1])
-        self.finite[:] = kern.add_members(self.out, self.base, self.cols, members, shift_of, signs, lefts, Ws, k)
+        self.finite[:] = kern.add_members(self.out, self.base, self.cols, members, shift_of, signs, lefts, Ws, k,
+                                            take)
         self.filled[members] = True
 
 
@@ -230,7 +238,7 @@ def run_shared(flow_solver: FlowSolver, operator, plan: SharedPlan, X: np.ndarra
     Ap, R0p, Sp, inv = in_locality_order(operator, As, R0, S)
     res = multishift_cg(Ap, R0p, deltas, rtol=flow_solver.rtol, maxiter=plan.maxiter,
                         block_bytes=block_bytes(plan.sigmas.size, S.size), progress=progress, emit=add,
-                        post=(Sp, inv))      # 0 off the free rows; back from the locality order
+                        post=(Sp, inv), degree=SHARED_DEGREE)      # 0 off the free rows; back from the locality order
     return res, (As, R0)
 
 

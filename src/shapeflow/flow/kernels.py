@@ -136,28 +136,33 @@ class FlowKernels(Family):
         return res, ynorm
 
     def add_members(self, out: np.ndarray, base: np.ndarray, cols: np.ndarray, members: np.ndarray,
-                    shift_of: np.ndarray, signs: np.ndarray, lefts: list, Ws: list, k: int) -> np.ndarray:
+                    shift_of: np.ndarray, signs: np.ndarray, lefts: list, Ws: list, k: int,
+                    take: np.ndarray | None = None) -> np.ndarray:
         """Members from the low-rank factors of a multi-shift solve: for each listed member m (shift
         q = ``shift_of`` of it), ``out[m] = base`` and, for column t, ``out[m][:, cols[t]] += signs ·
-        (lefts[t][q] @ Ws[t])`` (``lefts[t]`` (k, r_t), ``Ws[t]`` (r_t, n), the solution columns already
-        scaled and in the mesh's order).  Returns (k,) bool: whether every value of shift q's solution
-        was finite (True for a shift without a listed member).  The values are formed :data:`ADD_ROWS`
-        vertices at a time, one GEMM per column on one thread into a block that stays in cache, and
-        written by :meth:`scatter_members`."""
+        (lefts[t][q] @ Ws[t]ᵀ)[take]`` (``lefts[t]`` (k, r_t); ``Ws[t]`` (n, r_t) vertex-major, or a tuple
+        of (n, ·) pieces side by side; ``take`` (n,) the rows' order, None: as they are).  Returns (k,)
+        bool: whether every value of shift q's solution was finite (True for a shift without a listed
+        member).  The values are formed :data:`ADD_ROWS` vertices at a time (the factor's rows of the
+        block gathered side by side), one GEMM per column on one thread into a block that stays in
+        cache, and written by :meth:`scatter_members`."""
         from ..linalg.multishift import gemm
 
         n, c = out.shape[1], cols.size
         finite = np.ones(k, bool)
         width = min(n, ADD_ROWS)
         rows = np.empty((c, k, width))
-        part = np.empty((max(L.shape[1] for L in lefts), width))
         lefts = [np.ascontiguousarray(L) for L in lefts]
+        pieces = [W if isinstance(W, tuple) else (W,) for W in Ws]
+        parts = [np.empty((width, L.shape[1])) for L in lefts]        # a block of Ws[t]'s rows
         for i0 in range(0, n, ADD_ROWS):                           # (blocks of vertices)
             w = min(n, i0 + ADD_ROWS) - i0
             for t in range(c):
-                Wb = part[:Ws[t].shape[0], :w]
-                np.copyto(Wb, Ws[t][:, i0:i0 + w])
-                gemm(lefts[t], Wb, rows[t, :, :w])
+                o = 0
+                for P in pieces[t]:                                 # the rows of the block, gathered
+                    parts[t][:w, o:o + P.shape[1]] = P[i0:i0 + w] if take is None else P[take[i0:i0 + w]]
+                    o += P.shape[1]
+                gemm(lefts[t], parts[t][:w], rows[t, :, :w], trans_b=True)
             finite &= self.scatter_members(out, base, cols, i0, rows[:, :, :w], members, shift_of, signs)
         return finite
 

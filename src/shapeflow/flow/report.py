@@ -54,7 +54,8 @@ class FamilyReport:
     which member ``m`` met the tolerance (multishift: of the shared solve, max
     over the coordinates; separate: flow()'s CG iterations, -1 for a direct
     solver; 0 for members with nothing to solve).  ``krylov_iterations`` is
-    the number of shared iterations (matrix-vector products per coordinate).
+    the number of shared iterations, each ``krylov_degree + 1`` matrix-vector products per coordinate
+    (``krylov_degree``: the shared CG's polynomial preconditioner, 0 for none and for BiCG).
     ``member_reports`` holds flow()'s own :class:`~shapeflow.flow.FlowReport`
     of every separately solved member (``None`` elsewhere).
     """
@@ -69,6 +70,7 @@ class FamilyReport:
     update: str
     solver: str = "none"
     krylov_iterations: int = 0
+    krylov_degree: int = 0
     member_iterations: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     shifts: int = 0
     fallback_members: list = field(default_factory=list)
@@ -85,8 +87,9 @@ class FamilyReport:
         k = len(self.lams)
         if self.path == "multishift":
             kind = "BiCG" if self.solver.startswith("multishift-bicg") else "CG"   # BiCG: with sharp edges
+            per = f" of {self.krylov_degree + 1} products" if self.krylov_degree else ""
             how = (f"one multi-shift {kind} solve for {self.shifts} distinct |λ| "
-                   f"({self.krylov_iterations} shared iterations)")
+                   f"({self.krylov_iterations} shared iterations{per})")
         elif self.path == "separate":
             how = f"{k} separate solves on one shared operator ({self.solver})"
         else:

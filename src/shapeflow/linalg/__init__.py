@@ -8,7 +8,8 @@
 * :mod:`~shapeflow.linalg.pairs` — :class:`PairMatrix`, a symmetric matrix as its diagonal and
   vertex pairs (the lean layout of very large systems);
 * :mod:`~shapeflow.linalg.multishift` — multi-shift CG (a family of shifted
-  systems from one Krylov space);
+  systems from one Krylov space), with the polynomial preconditioner of
+  :mod:`~shapeflow.linalg.shift_polynomial` that keeps them shifts of one operator;
 * :mod:`~shapeflow.linalg.local` — :class:`LocalSolver` for streams of small
   SPD systems (banded, split, sparse), with :mod:`~shapeflow.linalg.banded`,
   :mod:`~shapeflow.linalg.ordering` and the BLAS thread control of

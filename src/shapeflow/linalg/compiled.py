@@ -541,14 +541,24 @@ class LinalgNumba(LinalgKernels):
         Xk = X[:, 0].copy() if squeeze else (X if k == 3 else X[:, :k].copy())
         return Xk, converged, B
 
-    def multishift_seed(self, A, B, seed, cap):
+    def multishift_seed(self, A, B, seed, cap, coef=None):
         """The seed's CG compiled (:class:`~shapeflow.linalg.compiled_shift.CompiledSeed`) for a CSR
         matrix and up to three columns; the reference otherwise."""
         if B.shape[0] > 3 or not (sp.issparse(A) and A.format == "csr"):
-            return super().multishift_seed(A, B, seed, cap)
+            return super().multishift_seed(A, B, seed, cap, coef)
         from .compiled_shift import CompiledSeed
 
-        return CompiledSeed(A, B, seed, cap)
+        return CompiledSeed(A, B, seed, cap, coef)
+
+    def shifted_powers(self, A, seed, Y, degree, out=None):
+        if not (sp.issparse(A) and A.format == "csr" and int32_csr(A)) or Y.dtype != np.float64:
+            return super().shifted_powers(A, seed, Y, degree, out)
+        data = np.ascontiguousarray(A.data, dtype=np.float64)
+        res = [np.ascontiguousarray(Y)]
+        for i in range(degree):
+            res.append(np.empty_like(res[0]) if out is None else out[i])
+            rows_product(A.indptr, A.indices, data, float(seed), res[-2], res[-1])
+        return res
 
     def weighted_col_norms(self, A, c, Y):
         if not (int32_csr(A) and Y.shape[1] == 3 and Y.flags.c_contiguous):
@@ -560,6 +570,22 @@ class LinalgNumba(LinalgKernels):
             return super().clenshaw_step(A, cinv, B1, B2, X0, H0, f, alpha, beta, cuj, chj)
         clenshaw_step(A.indptr, A.indices, np.ascontiguousarray(A.data, dtype=np.float64), cinv, B1, B2, X0, H0,
                       f, alpha, beta, cuj, chj)
+
+
+@njit(cache=True)
+def rows_product(indptr, indices, data, seed, Y, Z):
+    """Z = (A + seed I) Y for Y, Z (n, r) C-contiguous of any width r: one pass over the matrix for all r
+    columns."""
+    n = indptr.size - 1
+    r = Y.shape[1]
+    for i in range(n):
+        for t in range(r):
+            Z[i, t] = seed * Y[i, t]
+        for q in range(indptr[i], indptr[i + 1]):
+            j = indices[q]
+            v = data[q]
+            for t in range(r):
+                Z[i, t] += v * Y[j, t]
 
 
 def int32_csr(A) -> bool:

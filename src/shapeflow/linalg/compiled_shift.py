@@ -2,6 +2,8 @@
 :func:`shapeflow.linalg.multishift.multishift_cg` in one loop (:class:`CompiledSeed`, which
 :meth:`shapeflow.linalg.compiled.LinalgNumba.multishift_seed` hands out).
 
+With a polynomial preconditioner (:mod:`~shapeflow.linalg.shift_polynomial`) the product is
+``A₀ p(A₀) P`` by Horner's scheme, d + 1 passes over the rows.
 The NumPy twin is :class:`~shapeflow.linalg.multishift.NumpySeed`, the linalg family's reference
 (same formulas in the same order; the sums differ in rounding only); ``tests/linalg/test_multishift.py``
 compares the two.  Up to three columns, stored (n, 3) as the flow's CG does (an unused column is
@@ -19,6 +21,7 @@ from numba import njit
 # what :func:`run` returns: every (shift, column) finished, a block boundary passed (save the
 # state), a shift finished in every column (report progress), the iteration cap, the records are
 # full (grow them)
+from .compiled import _entries_times3
 from .multishift import CAPPED, CHECKPOINT, DONE, GROW, PROGRESS, NumpySeed, Records, ShiftedSystems
 
 __all__ = ["CompiledSeed", "run", "replay", "DONE", "CAPPED"]
@@ -27,26 +30,36 @@ __all__ = ["CompiledSeed", "run", "replay", "DONE", "CAPPED"]
 @njit(cache=True)
 def _product(indptr, indices, data, seed, P, AP):
     """AP = (A + seed I) P for the three columns of P (n, 3); returns pᵀAp per column (row order)."""
+    return _apply_dot(indptr, indices, data, seed, P, P, AP)
+
+
+@njit(inline="always")
+def _shifted_row(indptr, indices, data, seed, X, i):
+    """Row i of (A + seed I) X, three columns."""
+    a0, a1, a2 = _entries_times3(indptr[i], indptr[i + 1], indices, data, X)
+    return a0 + seed * X[i, 0], a1 + seed * X[i, 1], a2 + seed * X[i, 2]
+
+
+@njit(cache=True)
+def _combine(indptr, indices, data, seed, X, sx, P, sp_, Y):
+    """Y = sx (A + seed I) X + sp P (three columns)."""
+    n = indptr.size - 1
+    for i in range(n):
+        a0, a1, a2 = _shifted_row(indptr, indices, data, seed, X, i)
+        Y[i, 0] = sx * a0 + sp_ * P[i, 0]
+        Y[i, 1] = sx * a1 + sp_ * P[i, 1]
+        Y[i, 2] = sx * a2 + sp_ * P[i, 2]
+
+
+@njit(cache=True)
+def _apply_dot(indptr, indices, data, seed, X, P, AP):
+    """AP = (A + seed I) X for the three columns of X (n, 3); returns pᵀ(AP) per column, p from P."""
     n = indptr.size - 1
     s0 = 0.0
     s1 = 0.0
     s2 = 0.0
-    q0 = indptr[0]
     for i in range(n):
-        q1 = indptr[i + 1]
-        a0 = 0.0
-        a1 = 0.0
-        a2 = 0.0
-        for q in range(q0, q1):
-            j = np.uint64(indices[q])
-            v = data[q]
-            a0 += v * P[j, 0]
-            a1 += v * P[j, 1]
-            a2 += v * P[j, 2]
-        q0 = q1
-        a0 += seed * P[i, 0]
-        a1 += seed * P[i, 1]
-        a2 += seed * P[i, 2]
+        a0, a1, a2 = _shifted_row(indptr, indices, data, seed, X, i)
         AP[i, 0] = a0
         AP[i, 1] = a1
         AP[i, 2] = a2
@@ -54,6 +67,28 @@ def _product(indptr, indices, data, seed, P, AP):
         s1 += P[i, 1] * a1
         s2 += P[i, 2] * a2
     return s0, s1, s2
+
+
+@njit(cache=True)
+def _poly_product(indptr, indices, data, seed, coef, P, AP, T, U):
+    """AP = A₀ p(A₀) P (A₀ = A + seed I, p of degree ≥ 1 with monomial coefficients ``coef``) by
+    Horner's scheme, as ``NumpySeed.poly_product``: T and U scratch (n, 3); returns pᵀAp per column."""
+    d = coef.size - 1
+    _combine(indptr, indices, data, seed, P, coef[d], P, coef[d - 1], T)
+    src = T
+    dst = U
+    for j in range(d - 2, -1, -1):
+        _combine(indptr, indices, data, seed, src, 1.0, P, coef[j], dst)
+        src, dst = dst, src
+    return _apply_dot(indptr, indices, data, seed, src, P, AP)
+
+
+@njit(cache=True)
+def _seed_product(indptr, indices, data, seed, coef, P, AP, T, U):
+    """The seed's operator applied to P: A₀ P when ``coef`` is empty, else :func:`_poly_product`."""
+    if coef.size == 0:
+        return _product(indptr, indices, data, seed, P, AP)
+    return _poly_product(indptr, indices, data, seed, coef, P, AP, T, U)
 
 
 @njit(cache=True)
@@ -105,12 +140,13 @@ def _direction(P, R, beta):
 
 
 @njit(cache=True)
-def run(indptr, indices, data, seed, P, AP, R, Rb, delta, zeta, zeta_prev, rho, alpha_prev, beta_prev, tol2,
-        active, live, iterations, ra, rb, rz, sa, sb, srho, state, maxiter):
+def run(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, delta, zeta, zeta_prev, rho, alpha_prev, beta_prev,
+        tol2, active, live, iterations, ra, rb, rz, sa, sb, srho, state, maxiter):
     """The first pass of ``NumpySeed.first_pass`` until a block boundary, a finished shift, the end,
     the cap or full records (the returned code); ``state[0]`` counts the iterations.
 
-    P, AP, R: the seed's direction, product and residual (n, 3); Rb (c, cap, n) the first block of
+    P, AP, R: the seed's direction, product and residual (n, 3), ``coef`` the polynomial
+    preconditioner's coefficients (empty: none) and T, U its scratch (n, 3); Rb (c, cap, n) the first block of
     residuals (r_t in slot t); ζ, ``active`` (not yet within the tolerance) and ``live`` (recurrence
     still running) per (shift, column); ρ, α, β per column (3,);
     the records ``ra, rb, rz`` (c, k, L) and ``sa, sb, srho`` (L, 3) are filled at each iteration.
@@ -133,7 +169,7 @@ def run(indptr, indices, data, seed, P, AP, R, Rb, delta, zeta, zeta_prev, rho, 
             for j in range(c):
                 if active[s, j]:
                     cols[j] = True
-        pap = _product(indptr, indices, data, seed, P, AP)
+        pap = _seed_product(indptr, indices, data, seed, coef, P, AP, T, U)
         for j in range(3):
             ok[j] = cols[j] and pap[j] > 0.0
             alpha[j] = rho[j] / pap[j] if ok[j] else 0.0
@@ -192,7 +228,7 @@ def run(indptr, indices, data, seed, P, AP, R, Rb, delta, zeta, zeta_prev, rho, 
 
 
 @njit(cache=True)
-def replay(indptr, indices, data, seed, P, AP, R, Rb, sa, sb, t0, t1):
+def replay(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, sa, sb, t0, t1):
     """The residuals r_t0 … r_{t1−1} into ``Rb[:, 0 … t1−t0−1]`` from R = r_t0, P = p_t0 (the state
     saved after iteration t0) with the recorded α and β: the first pass's arithmetic, so the same bits."""
     c = Rb.shape[0]
@@ -201,7 +237,7 @@ def replay(indptr, indices, data, seed, P, AP, R, Rb, sa, sb, t0, t1):
         for i in range(n):
             Rb[j, 0, i] = R[i, j]
     for t in range(t0 + 1, t1):
-        _product(indptr, indices, data, seed, P, AP)
+        _seed_product(indptr, indices, data, seed, coef, P, AP, T, U)
         _residual(R, AP, sa[t], Rb, t - t0, c)
         _direction(P, R, sb[t])
 
@@ -210,9 +246,13 @@ class CompiledSeed(NumpySeed):
     """The seed's CG of :class:`~shapeflow.linalg.multishift.NumpySeed` compiled ((n, 3) vectors,
     unused columns 0): :func:`run` and :func:`replay`."""
 
-    def __init__(self, A, B: np.ndarray, seed: float, cap: int):
+    def __init__(self, A, B: np.ndarray, seed: float, cap: int, coef: np.ndarray | None = None):
         self.A, self.seed, self.cap = A, seed, cap
         self.c, self.n = B.shape
+        self.coef = np.zeros(0) if coef is None else np.ascontiguousarray(coef, dtype=np.float64)
+        d = max(self.coef.size - 1, 0)                 # the polynomial's scratch: none, T, or T and U
+        self.T = np.empty((self.n if d >= 1 else 0, 3))
+        self.U = np.empty((self.n, 3)) if d >= 2 else self.T
         self.indptr = A.indptr.astype(np.int32, copy=False)
         self.indices = A.indices.astype(np.int32, copy=False)
         self.data = np.ascontiguousarray(A.data, dtype=np.float64)
@@ -227,7 +267,7 @@ class CompiledSeed(NumpySeed):
         self.rec = None
 
     def release(self) -> None:
-        self.Rb = self.P = self.R = self.AP = None
+        self.Rb = self.P = self.R = self.AP = self.T = self.U = None
         self.saved = {}
 
     def first_pass(self, rec: Records, sh: ShiftedSystems, report) -> int:
@@ -242,7 +282,8 @@ class CompiledSeed(NumpySeed):
         state = np.zeros(1, np.int64)
         done = report(None)
         while True:
-            st = run(self.indptr, self.indices, self.data, self.seed, self.P, self.AP, self.R, self.Rb,
+            st = run(self.indptr, self.indices, self.data, self.seed, self.coef, self.P, self.AP, self.T, self.U,
+                     self.R, self.Rb,
                                delta, zeta, zeta_prev, rho3, alpha_prev, beta_prev, tol3, active, sh.live, iterations,
                                rec.ra, rec.rb, rec.rz, rec.sa, rec.sb, rec.srho, state, sh.maxiter)
             done = report(done)
@@ -255,6 +296,7 @@ class CompiledSeed(NumpySeed):
 
     def replay(self, b: int, t0: int, t1: int) -> None:
         self.R, self.P = self.saved.pop(b)
-        replay(self.indptr, self.indices, self.data, self.seed, self.P, self.AP, self.R, self.Rb,
+        replay(self.indptr, self.indices, self.data, self.seed, self.coef, self.P, self.AP, self.T, self.U,
+               self.R, self.Rb,
                          self.rec.sa, self.rec.sb, t0, t1)
         self.replayed += t1 - t0 - 1

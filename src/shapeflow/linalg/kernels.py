@@ -89,13 +89,27 @@ class LinalgKernels(Family):
         converged = not (rz > tol2).any() and bool(np.all(np.isfinite(X)))
         return (X[0] if squeeze else np.ascontiguousarray(X.T)), converged, B
 
-    def multishift_seed(self, A, B: np.ndarray, seed: float, cap: int):
-        """The seed's CG of :func:`~shapeflow.linalg.multishift.multishift_cg` on ``A + seed I`` from the
-        residuals ``B`` (c, n), storing ``cap`` residuals per block: a
-        :class:`~shapeflow.linalg.multishift.NumpySeed` (its first pass and the replays of later blocks)."""
+    def multishift_seed(self, A, B: np.ndarray, seed: float, cap: int, coef: np.ndarray | None = None):
+        """The seed's CG of :func:`~shapeflow.linalg.multishift.multishift_cg` on ``A₀ = A + seed I`` (or
+        ``A₀ p(A₀)``, p's monomial coefficients ``coef``) from the residuals ``B`` (c, n), storing ``cap``
+        residuals per block: a :class:`~shapeflow.linalg.multishift.NumpySeed` (its first pass and the
+        replays of later blocks)."""
         from .multishift import NumpySeed
 
-        return NumpySeed(A, B, seed, cap)
+        return NumpySeed(A, B, seed, cap, coef)
+
+    def shifted_powers(self, A, seed: float, Y: np.ndarray, degree: int, out: list | None = None) -> list:
+        """``[Y, A₀ Y, …, A₀^degree Y]``, each (n, r) C-contiguous, for ``Y`` (n, r) and A₀ = A + seed I
+        (the solutions of :func:`~shapeflow.linalg.multishift.multishift_cg`'s polynomial
+        preconditioner); ``out``: ``degree`` C-contiguous (n, r) arrays to write the powers into."""
+        res = [np.ascontiguousarray(Y)]
+        for i in range(degree):
+            Z = np.asarray(A @ res[-1]) + seed * res[-1]
+            if out is not None:
+                out[i][...] = Z
+                Z = out[i]
+            res.append(np.ascontiguousarray(Z))
+        return res
 
     def weighted_col_norms(self, A, c: np.ndarray, Y: np.ndarray) -> np.ndarray:
         """sqrt(Σ_i c_i Y_ij²) of each column of Y (the Chebyshev expansion's C-norms; ``A`` is its matrix)."""

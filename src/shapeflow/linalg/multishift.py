@@ -12,11 +12,17 @@ from scipy.linalg.blas import dgemm
 from .. import accel
 from ..errors import ParameterError
 from .blas import SingleThreadBLAS
+from .shift_polynomial import (
+    LOWER_FRACTION,
+    chebyshev_residual_polynomial,
+    shifted_polynomials,
+    spectrum_upper_estimate,
+)
 from .spd import DEFAULT_RTOL
 
 __all__ = ["BLOCK_BYTES", "RANK_TOL", "TRUE_RESIDUAL_FACTOR", "MultiShiftResult", "multishift_cg",
            "shifted_coefficients", "member_coefficients", "low_rank_factors", "shifted_residuals",
-           "ShiftedSystems", "NumpySeed", "Records"]
+           "ShiftedSystems", "SeedPolynomial", "NumpySeed", "Records"]
 
 
 #: memory for the block of stored seed residuals (beyond it, later blocks are replayed)
@@ -49,7 +55,8 @@ class MultiShiftResult:
     met the tolerance (``-1``: never), ``converged[i, j]`` whether it did.
     ``flushes`` counts the blocks of seed residuals folded into the iterates,
     ``replayed`` the seed iterations run again for the blocks after the first,
-    ``ranks[j]`` the rank of column j's factorised coefficients (0: not factorised).
+    ``ranks[j]`` the rank of column j's factorised coefficients (0: not factorised), ``degree`` that of
+    the polynomial preconditioner (0: none; each iteration then took ``degree + 1`` products).
     """
 
     X: np.ndarray
@@ -59,13 +66,14 @@ class MultiShiftResult:
     flushes: int
     replayed: int = 0
     ranks: tuple = ()
+    degree: int = 0
 
 
 def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxiter: int | None = None,
                   block_bytes: int = BLOCK_BYTES, low_rank: bool = True,
                   progress: Callable[[np.ndarray], None] | None = None,
                   emit: Callable[[np.ndarray, np.ndarray], None] | None = None,
-                  post: tuple | None = None) -> MultiShiftResult:
+                  post: tuple | None = None, degree: int = 0) -> MultiShiftResult:
     """Solve ``(A + s_i I) X_i = B`` for every shift ``s_i`` with one Krylov space.
 
     Parameters
@@ -90,10 +98,19 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
         handed over as they are formed: ``emit(shifts, rows)`` with ``rows[j, q]`` column ``j``
         of the solution for shift ``shifts[q]`` (a buffer reused after the call returns).  An
         ``emit`` with a ``factors`` method is handed the low-rank factors instead when every column
-        was factorised: ``emit.factors(lefts, Ws)``, column j of every solution being
-        ``lefts[j] @ Ws[j]`` ((k, r_j) in the order of ``shifts``, (r_j, n) transformed by ``post``).
+        was factorised: ``emit.factors(lefts, Ws, take)``, column j of every solution being
+        ``lefts[j] @ Ws[j]ᵀ`` ((k, r_j) in the order of ``shifts``; Ws[j] a tuple of (n, ·) vertex-major
+        pieces side by side, scaled by ``post``'s scale) with its rows taken by ``take`` (None: as they are).
     post : ``(scale, take)``, either may be None: every solution column x is returned (or
         emitted) as ``(scale * x)[take]`` (applied to the low-rank factor, before the rows are formed).
+    degree : a polynomial preconditioner of this degree that keeps the systems shifts of one
+        operator (:mod:`~shapeflow.linalg.shift_polynomial`; 0: none).  CG then runs on
+        ``B = A₀ p(A₀)`` (A₀ = A + min(shifts) I, p Chebyshev's on [hi/100, hi], hi from 16 Lanczos
+        steps) with the shifts ``β_δ = δ p(−δ)``, and each solution is ``p_δ(A₀) y``: about
+        ``degree + 1`` times fewer iterations of ``degree + 1`` products each, as many fewer residuals
+        stored, and ``degree`` products per row of the low-rank factor to form the solutions.  The
+        residuals tested against ``rtol`` are those of the original systems (the same vectors).
+        Even degrees keep B positive definite however the spectrum's estimate falls.
 
     Notes
     -----
@@ -111,12 +128,73 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
     (:mod:`~shapeflow.linalg.compiled_shift`, a CSR matrix, up to three columns) with the same
     formulas in the same order.
 
+    With ``degree`` the same runs on B = A₀ p(A₀) (:class:`SeedPolynomial`): the stored residuals
+    are those of the y's, the factor W of their low-rank fold (n × r) is extended to
+    ``[W, A₀W, …, A₀^d W]`` (the linalg kernel family's ``shifted_powers``, written into the
+    block of residuals that the fold no longer needs) and each shift's left factor to
+    ``[π_0 L, …, π_d L]`` with p_δ's coefficients π: the solutions' factors, of rank (d + 1) r.
+
     """
+    if int(degree) != degree or degree < 0:
+        raise ParameterError(f"degree must be a non-negative integer, got {degree!r}")
     sh = ShiftedSystems(B, shifts, rtol, maxiter)
     if sh.result is not None:
         return sh.result
-    seed_cg = accel.kernels("linalg", sh.n).multishift_seed(A, sh.B, sh.seed, sh.block_slots(block_bytes))
-    return sh.solve(seed_cg, rtol if low_rank else None, progress, emit, post)
+    poly = SeedPolynomial(A, sh, int(degree)) if degree else None
+    seed_cg = accel.kernels("linalg", sh.n).multishift_seed(A, sh.B, sh.seed, sh.block_slots(block_bytes),
+                                                            None if poly is None else poly.coef)
+    return sh.solve(seed_cg, rtol if low_rank else None, progress, emit, post, poly)
+
+
+class SeedPolynomial:
+    """The polynomial preconditioner of :func:`multishift_cg` (``degree``) on ``A₀ = A + seed I``: its
+    coefficients ``coef`` (p_0 … p_d), the shifts of B = A₀ p(A₀) written into ``sh.delta`` in place
+    of the original ones, and ``pis`` (k, d + 1): the coefficients of each
+    shift's p_δ, in the sorted order of ``sh``."""
+
+    def __init__(self, A, sh: ShiftedSystems, degree: int):
+        self.A, self.seed, self.degree = A, sh.seed, degree
+        start = sh.B[int(np.argmax(sh.rho))]
+        hi = spectrum_upper_estimate(A, sh.seed, start)
+        if not (hi > 0 and np.isfinite(hi)):
+            raise ParameterError(f"A + {sh.seed:g} I is not positive definite (largest Ritz value {hi:g})")
+        self.coef = chebyshev_residual_polynomial(degree, LOWER_FRACTION * hi, hi)
+        betas, self.pis = shifted_polynomials(self.coef, sh.delta)
+        sh.delta = np.ascontiguousarray(betas)
+
+    def recover(self, Y: np.ndarray, pis: np.ndarray) -> np.ndarray:
+        """The solutions ``Σ_i pis[:, i] A₀^i Y`` of the rows of ``Y`` (k, n) (row s by its own p_δ)."""
+        P = accel.kernels("linalg", Y.shape[1]).shifted_powers(self.A, self.seed, np.ascontiguousarray(Y.T),
+                                                              self.degree)
+        X = pis[:, :1] * Y
+        for i in range(1, self.degree + 1):
+            X += pis[:, i:i + 1] * P[i].T
+        return X
+
+    def extend(self, lefts: list, Ws: list, pis: np.ndarray, spare: np.ndarray | None = None) -> None:
+        """The low-rank factors of the solutions from those of the y's, in place for each column j with
+        factors (``lefts[j]`` (k, r), ``Ws[j]`` a 1-tuple of (n, r) vertex-major; None: skipped):
+        ``[pis[:, 0] left, …, pis[:, d] left]`` and the pieces ``(W, A₀ W, …, A₀^d W)`` (the linalg
+        kernel family's ``shifted_powers``), written into ``spare`` (a float64 buffer no longer needed,
+        such as the seed's block of residuals, whose pages are in memory already) while it lasts."""
+        flat = np.zeros(0) if spare is None else spare.reshape(-1)
+        o = 0
+        for j in range(len(Ws)):
+            if Ws[j] is None:
+                continue
+            (W,) = Ws[j]
+            n, r = W.shape
+            outs = []
+            for _ in range(self.degree):
+                if o + n * r <= flat.size:
+                    outs.append(flat[o:o + n * r].reshape(n, r))
+                    o += n * r
+                else:
+                    outs.append(np.empty((n, r)))
+            kern = accel.kernels("linalg", n)
+            Ws[j] = tuple(kern.shifted_powers(self.A, self.seed, W, self.degree, outs))
+            lefts[j] = np.ascontiguousarray(np.concatenate([pis[:, i:i + 1] * lefts[j]
+                                                            for i in range(self.degree + 1)], axis=1))
 
 
 class ShiftedSystems:
@@ -151,9 +229,10 @@ class ShiftedSystems:
         """Seed residuals stored in the first block (and in every replayed one)."""
         return int(max(8, min(self.maxiter + 1, block_bytes // max(1, 8 * self.c * self.n))))
 
-    def solve(self, seed_cg, rtol: float | None, progress, emit=None, post=None) -> MultiShiftResult:
+    def solve(self, seed_cg, rtol: float | None, progress, emit=None, post=None, poly=None) -> MultiShiftResult:
         """The first pass of ``seed_cg``, the members' coefficients, the fold (low rank with ``rtol``);
-        the iterates into ``X`` or handed to ``emit`` (see :func:`multishift_cg`)."""
+        the iterates into ``X`` or handed to ``emit`` (see :func:`multishift_cg`); with ``poly``
+        (:class:`SeedPolynomial`) the iterates are the y's, mapped to the solutions in the fold."""
         rec = Records(self.c, self.k, min(self.maxiter + 1, 256))
         rec.srho[0, :self.c] = self.rho
         m = seed_cg.first_pass(rec, self, lambda done: report_progress(progress, self.active, self.inv, done))
@@ -164,9 +243,9 @@ class ShiftedSystems:
 
             def emit(shifts, rows):
                 X[:, shifts] = rows
-        flushes, ranks = fold(seed_cg, rec, m, stop, self.inv, rtol, emit, post)
+        flushes, ranks = fold(seed_cg, rec, m, stop, self.inv, rtol, emit, post, poly)
         return MultiShiftResult(X, self.iterations[self.inv], ~self.active[self.inv], m, flushes,
-                                seed_cg.replayed, ranks)
+                                seed_cg.replayed, ranks, 0 if poly is None else poly.degree)
 
 
 #: shifts formed at a time when the iterates are handed out row by row (``emit``)
@@ -174,10 +253,12 @@ EMIT_ROWS = 16
 
 
 def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol: float | None, emit,
-         post=None):
+         post=None, poly=None):
     """The iterates x_s = Σ_t C[s, t] r_t from the blocks of seed residuals (the first one stored, the
     others replayed), transformed by ``post`` and handed to ``emit(shifts, rows)`` (shifts in the
-    caller's order, ``rows`` (c, shifts, n) a reused buffer); returns (blocks, ranks).
+    caller's order, ``rows`` (c, shifts, n) a reused buffer); returns (blocks, ranks).  With ``poly``
+    (:class:`SeedPolynomial`) the iterates are y_s, and the solutions ``p_δs(A₀) y_s`` are formed
+    from them before ``post`` (on the low-rank factors: :meth:`SeedPolynomial.extend`).
 
     Per column, with ``rtol``, through :func:`low_rank_factors` of the coefficients of the recurrences
     run to the seed's last iteration, where that saves flops; otherwise one GEMM per block with the
@@ -195,7 +276,7 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
     if full:
         C = member_coefficients(rec.ra, rec.rb, rec.rz, m, stop)
         Cp = {j: np.ascontiguousarray(C[j][inv]) for j in full}
-    W = [None if f is None else np.zeros((f[0].shape[1], n)) for f in factors]
+    W = [None if f is None else np.zeros((n, f[0].shape[1])) for f in factors]     # vertex-major
     nblocks = -(-m // cap) if m else 0
     for b in range(nblocks):
         t0, t1 = b * cap, min(m, (b + 1) * cap)
@@ -204,30 +285,41 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
         Rv = seed_cg.Rb[:, :t1 - t0]
         for j in range(c):
             if factors[j] is not None:
-                gemm(factors[j][1][t0:t1].T, Rv[j], W[j], True)
+                gemm(Rv[j], factors[j][1][t0:t1], W[j], True, trans_a=True)
             else:
                 gemm(Cp[j][:, t0:t1], Rv[j], X[full.index(j)], b > 0)
+    spare = seed_cg.Rb                                  # (its pages are in memory: the powers go there)
     seed_cg.release()
     if not nblocks and X is not None:
         X[:] = 0.0
     lefts = [None if f is None else f[0][inv] for f in factors]     # rows in the caller's order
+    W = [None if w is None else (w,) for w in W]       # the factor's pieces, side by side
+    if poly is not None:
+        pis = poly.pis[inv]
+        poly.extend(lefts, W, pis, spare)
+        for t in range(len(full)):
+            X[t] = poly.recover(X[t], pis)
+    del spare
     scale, take = post if post is not None else (None, None)
     for j in range(c):
-        if factors[j] is not None:
-            if scale is not None:
-                W[j] *= scale                           # rows of W: the transform is linear
-            if take is not None:
-                W[j] = W[j][:, take]
+        if factors[j] is not None and scale is not None:
+            for piece in W[j]:
+                piece *= scale[:, None]                 # rows of W are vertices: the transform is linear
     if all(f is not None for f in factors) and hasattr(emit, "factors"):
-        emit.factors(lefts, W)                          # the receiver forms the rows itself
+        emit.factors(lefts, W, take)                    # the receiver forms the rows itself
         return nblocks, tuple(f[0].shape[1] for f in factors)
+    for j in range(c):
+        if factors[j] is not None:
+            W[j] = W[j][0] if len(W[j]) == 1 else np.concatenate(W[j], axis=1)
+            if take is not None:
+                W[j] = W[j][take]
     chunk = min(EMIT_ROWS, k)
     buf = np.empty((c, chunk, n))                       # buf[j]: contiguous rows, one GEMM's output
     for s0 in range(0, k, chunk):
         q = min(chunk, k - s0)
         for j in range(c):
             if factors[j] is not None:
-                gemm(lefts[j][s0:s0 + q], W[j], buf[j, :q])
+                gemm(lefts[j][s0:s0 + q], W[j], buf[j, :q], trans_b=True)
                 continue
             rows = X[full.index(j), s0:s0 + q]
             if scale is not None:
@@ -237,19 +329,22 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
     return nblocks, tuple(0 if f is None else f[0].shape[1] for f in factors)
 
 
-def gemm(A: np.ndarray, B: np.ndarray, out: np.ndarray, accumulate: bool = False) -> None:
-    """``out = A @ B`` (``out += A @ B`` with ``accumulate``) for a C-contiguous ``out`` and ``B``, by SciPy's
+def gemm(A: np.ndarray, B: np.ndarray, out: np.ndarray, accumulate: bool = False, *, trans_a: bool = False,
+         trans_b: bool = False) -> None:
+    """``out = op(A) @ op(B)`` (``out +=`` with ``accumulate``; op transposes with ``trans_a``/``trans_b``)
+    for C-contiguous ``out``, ``A`` and ``B`` (a transposed operand is read in place), by SciPy's
     BLAS on one thread (:class:`~shapeflow.linalg.blas.SingleThreadBLAS`): OpenBLAS's threads keep
     spinning after a call, which on two shared cores slowed the seed's compiled iterations that
     follow by up to 2× (and the GEMMs themselves are short)."""
     if out.size == 0:
         return
-    if A.shape[1] == 0:                                 # (BLAS refuses empty operands)
+    if A.shape[0 if trans_a else 1] == 0:               # (BLAS refuses empty operands)
         if not accumulate:
             out[:] = 0.0
         return
-    with SingleThreadBLAS():
-        r = dgemm(1.0, B.T, A.T, beta=1.0 if accumulate else 0.0, c=out.T, overwrite_c=True)
+    with SingleThreadBLAS():                            # outᵀ = op(B)ᵀ op(A)ᵀ on the Fortran views
+        r = dgemm(1.0, B.T, A.T, beta=1.0 if accumulate else 0.0, c=out.T, trans_a=int(trans_b),
+                  trans_b=int(trans_a), overwrite_c=True)
     if not np.shares_memory(r, out):                    # (a copy where the layout asked for one)
         out[:] = r.T
 
@@ -330,8 +425,8 @@ class NumpySeed:
     """The seed's CG in NumPy (component-major (c, n) vectors): the first pass (records, the first
     block of residuals, the states where later blocks start) and the replay of a later block."""
 
-    def __init__(self, A, B: np.ndarray, seed: float, cap: int):
-        self.A, self.seed, self.cap = A, seed, cap
+    def __init__(self, A, B: np.ndarray, seed: float, cap: int, coef: np.ndarray | None = None):
+        self.A, self.seed, self.cap, self.coef = A, seed, cap, coef
         self.c, self.n = B.shape
         self.Rb = np.empty((self.c, cap, self.n))       # the block's seed residuals
         self.Rb[:, 0] = B
@@ -347,10 +442,25 @@ class NumpySeed:
         self.saved = {}
 
     def product(self, cols) -> None:
+        """Ap = A₀ p (A₀ = A + seed I), or A₀ p(A₀) p with the polynomial's coefficients ``coef``."""
+        if self.coef is not None:
+            for j in cols:
+                self.Ap[j] = self.poly_product(self.p[j])
+            return
         for j in cols:                                  # (per column: faster than SciPy's multi-vector product)
             self.Ap[j] = self.A @ self.p[j]
         if self.seed != 0.0:
             self.Ap += self.seed * self.p
+
+    def poly_product(self, v: np.ndarray) -> np.ndarray:
+        """A₀ p(A₀) v by Horner's scheme, as the compiled kernel: y = p_d A₀ v + p_{d−1} v, then
+        y = A₀ y + p_j v down to j = 0, then A₀ y."""
+        coef, A, seed = self.coef, self.A, self.seed
+        d = coef.size - 1
+        y = coef[d] * (A @ v + seed * v) + coef[d - 1] * v
+        for j in range(d - 2, -1, -1):                  # (over the degree)
+            y = (A @ y + seed * y) + coef[j] * v
+        return A @ y + seed * y
 
     def first_pass(self, rec: Records, sh: ShiftedSystems, report) -> int:
         c, cap = self.c, self.cap

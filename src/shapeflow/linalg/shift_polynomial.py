@@ -1,0 +1,102 @@
+"""A polynomial preconditioner that keeps a family of shifted systems shifts of one operator.
+
+For ``(A + δ I) x = b`` over many δ ≥ 0 (A symmetric positive definite), a polynomial p of degree d
+gives the operator ``B = A p(A)`` and, for every δ, the polynomial
+``p_δ(t) = (t p(t) + β_δ) / (t + δ)`` with ``β_δ = δ p(−δ)``: the division is exact (the numerator
+vanishes at t = −δ), so ``(A + δ I) p_δ(A) = B + β_δ I`` (Ahmad, Szyld and van Gijzen 2017).  Each
+system becomes ``(B + β_δ I) y = b`` with ``x = p_δ(A) y``: shifts of the one operator B, solvable from
+one Krylov space (:func:`~shapeflow.linalg.multishift.multishift_cg`), and the residual of y in its
+system *is* the residual of x in the original one.  B's condition number is about that of A divided
+by (d + 1)², so CG needs about d + 1 times fewer iterations (each with d + 1 products).
+
+p is the Chebyshev one on an interval [lo, hi]: ``t p(t) = 1 − T_{d+1}(u(t)) / T_{d+1}(u(0))`` with
+``u(t) = (hi + lo − 2t) / (hi − lo)``.  For even d, t p(t) > 0 for every t > 0 (beyond hi too), so B is
+positive definite whatever the estimate of A's spectrum; β_δ = T_{d+1}(u(−δ)) / T_{d+1}(u(0)) − 1 > 0
+grows with δ.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+
+from ..errors import ParameterError
+from .blas import SingleThreadBLAS
+
+__all__ = ["chebyshev_residual_polynomial", "shifted_polynomials", "spectrum_upper_estimate",
+           "LOWER_FRACTION", "LANCZOS_STEPS"]
+
+#: the interval's lower end as a fraction of its upper one (the systems' smallest eigenvalue is not
+#: estimated: on the seed system of the figure-1 family on Suzanne ×3, λ_min/λ_max ≈ 0.002, degree 2
+#: took 92, 70, 69, 69, 70 and 73 iterations with the fractions 0.001, 0.002, 0.005, 0.01, 0.02 and
+#: 0.05, 2026-11-26; 209 without the preconditioner)
+LOWER_FRACTION = 0.01
+
+#: Lanczos steps of :func:`spectrum_upper_estimate` (16: within 1 % above λ_max on Suzanne ×3 and ×4)
+LANCZOS_STEPS = 16
+
+
+def chebyshev_residual_polynomial(degree: int, lo: float, hi: float) -> np.ndarray:
+    """Monomial coefficients ``(p_0, …, p_d)`` of the degree-``degree`` p with
+    ``t p(t) = 1 − T_{d+1}(u(t)) / T_{d+1}(u(0))``, ``u(t) = (hi + lo − 2t) / (hi − lo)``."""
+    from numpy.polynomial import Chebyshev, Polynomial
+
+    if degree < 1 or int(degree) != degree:
+        raise ParameterError(f"degree must be a positive integer, got {degree!r}")
+    if not (0.0 < lo < hi and np.isfinite(hi)):
+        raise ParameterError(f"the interval must satisfy 0 < lo < hi, got lo={lo!r}, hi={hi!r}")
+    T = Chebyshev.basis(int(degree) + 1, domain=[lo, hi]).convert(kind=Polynomial)   # T_{d+1}(−u(t)) in t
+    q = T.coef / T(0.0)                   # (the sign (−1)^{d+1} cancels in the ratio)
+    tp = -q
+    tp[0] += 1.0                          # t p(t) = 1 − q(t): no constant term
+    return np.ascontiguousarray(tp[1:])
+
+
+def shifted_polynomials(coef: np.ndarray, deltas: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``β_δ = δ p(−δ)`` (k,) and the monomial coefficients (k, d + 1) of ``p_δ(t) = (t p(t) + β_δ)/(t + δ)``
+    for each δ of ``deltas`` (synthetic division by t + δ, exact: its remainder is zero)."""
+    coef = np.asarray(coef, dtype=np.float64)
+    deltas = np.asarray(deltas, dtype=np.float64)
+    d = coef.size - 1
+    # t p(t) + β: coefficients n_0 = β, n_{j+1} = p_j; p(−δ) by Horner
+    p_at = np.zeros_like(deltas)
+    for j in range(d, -1, -1):                          # (over the degree: d + 1 steps)
+        p_at = p_at * -deltas + coef[j]
+    betas = deltas * p_at
+    out = np.empty((deltas.size, d + 1))
+    out[:, d] = coef[d]
+    for i in range(d, 0, -1):                           # q_{i−1} = n_i − δ q_i
+        out[:, i - 1] = coef[i - 1] - deltas * out[:, i]
+    return betas, out
+
+
+def spectrum_upper_estimate(A, seed: float, v: np.ndarray, steps: int = LANCZOS_STEPS) -> float:
+    """An estimate from above of the largest eigenvalue of ``A + seed I`` (symmetric): ``steps`` Lanczos
+    steps from ``v``, the largest Ritz value plus its residual norm (the distance within which an
+    eigenvalue lies).  Not a bound in every case; :func:`chebyshev_residual_polynomial` of even degree
+    stays positive definite when it falls short."""
+    def dot(x, y):              # (einsum, not BLAS: a threaded BLAS's workers would spin beside the solve)
+        return float(np.einsum("i,i->", x, y))
+
+    q = np.asarray(v, dtype=np.float64)
+    nq = np.sqrt(dot(q, q))
+    if not (nq > 0 and np.isfinite(nq)):
+        raise ParameterError("the start vector of the spectrum estimate must be finite and non-zero")
+    q = q / nq
+    q_prev = np.zeros_like(q)
+    alphas, betas = [], []
+    beta = 0.0
+    for _ in range(int(steps)):                         # (over the steps: a few products)
+        w = A @ q + seed * q - beta * q_prev
+        a = dot(q, w)
+        w -= a * q
+        beta = np.sqrt(dot(w, w))
+        alphas.append(a)
+        betas.append(beta)
+        if not beta > 1e-12 * max(abs(a), 1e-300):      # an invariant subspace: the Ritz values are exact
+            break
+        q_prev, q = q, w / beta
+    with SingleThreadBLAS():
+        ev, U = scipy.linalg.eigh_tridiagonal(np.array(alphas), np.array(betas[:-1]), select="i",
+                                              select_range=(len(alphas) - 1, len(alphas) - 1))
+    return float(ev[-1] + abs(betas[-1] * U[-1, -1]))

@@ -1,0 +1,116 @@
+"""The polynomial preconditioner that keeps shifted systems shifts of one operator
+(linalg.shift_polynomial): the identity (A + δ) p_δ(A) = A p(A) + β_δ I on dense matrices, the
+Chebyshev residual polynomial against its closed form, positivity, the spectrum estimate against
+dense eigenvalues, and the compiled powers against SciPy's products."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from shapeflow import accel
+from shapeflow.linalg.shift_polynomial import (
+    chebyshev_residual_polynomial,
+    shifted_polynomials,
+    spectrum_upper_estimate,
+)
+
+
+def poly_matrix(coef, A):
+    """Σ_j coef[j] A^j, dense, by repeated products (no Horner: an independent evaluation)."""
+    out = np.zeros_like(A)
+    P = np.eye(A.shape[0])
+    for c in coef:
+        out += c * P
+        P = P @ A
+    return out
+
+
+def chebyshev(k, x):
+    """T_k(x) for |x| ≥ 1 by cosh (and for |x| ≤ 1 by cos)."""
+    x = np.asarray(x, dtype=np.float64)
+    inside = np.abs(x) <= 1
+    out = np.empty_like(x)
+    out[inside] = np.cos(k * np.arccos(x[inside]))
+    xo = x[~inside]
+    out[~inside] = np.sign(xo) ** k * np.cosh(k * np.arccosh(np.abs(xo)))
+    return out
+
+
+@pytest.mark.parametrize("degree", [1, 2, 3, 4])
+def test_residual_polynomial_is_chebyshevs(degree):
+    lo, hi = 0.02, 2.0
+    coef = chebyshev_residual_polynomial(degree, lo, hi)
+    assert coef.shape == (degree + 1,)
+    t = np.linspace(0.0, 3.0, 301)
+    u = lambda s: (hi + lo - 2 * s) / (hi - lo)        # noqa: E731
+    want = 1.0 - chebyshev(degree + 1, u(t)) / chebyshev(degree + 1, u(0.0))
+    got = t * np.polyval(coef[::-1], t)
+    assert np.allclose(got, want, rtol=1e-12, atol=1e-12)
+    inside = (t >= lo) & (t <= hi)
+    bound = 1.0 / chebyshev(degree + 1, np.array([u(0.0)]))[0]
+    assert np.all(np.abs(got[inside] - 1.0) <= bound * (1 + 1e-12))
+    if degree % 2 == 0:                     # even degree: positive for every t > 0, beyond hi too
+        assert np.all(got[1:] > 0)
+
+
+@pytest.mark.parametrize("degree", [1, 2, 3])
+def test_shifted_polynomials_keep_the_systems_shifts_of_one_operator(degree):
+    rng = np.random.default_rng(2)
+    Q, _ = np.linalg.qr(rng.normal(size=(30, 30)))
+    A = Q @ np.diag(np.geomspace(0.01, 2.0, 30)) @ Q.T
+    coef = chebyshev_residual_polynomial(degree, 0.02, 2.1)
+    deltas = np.array([0.0, 1e-4, 0.05, 0.3, 2.0])
+    betas, pis = shifted_polynomials(coef, deltas)
+    Bm = A @ poly_matrix(coef, A)
+    assert betas[0] == 0.0 and np.all(np.diff(betas) > 0)
+    for d, b, pi in zip(deltas, betas, pis):
+        lhs = (A + d * np.eye(30)) @ poly_matrix(pi, A)
+        assert np.allclose(lhs, Bm + b * np.eye(30), rtol=0, atol=1e-11 * np.abs(Bm).max())
+
+
+def test_parameters_are_checked():
+    with pytest.raises(ValueError, match="degree"):
+        chebyshev_residual_polynomial(0, 0.1, 1.0)
+    with pytest.raises(ValueError, match="lo"):
+        chebyshev_residual_polynomial(2, 1.0, 0.5)
+    with pytest.raises(ValueError, match="start vector"):
+        spectrum_upper_estimate(sp.eye(5, format="csr"), 0.0, np.zeros(5))
+
+
+def grid(m):
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(m, m))
+    A = (sp.kron(T, sp.eye(m)) + sp.kron(sp.eye(m), T)).tocsr()
+    A.indices = A.indices.astype(np.int32)
+    A.indptr = A.indptr.astype(np.int32)
+    return A
+
+
+def test_spectrum_estimate_is_near_the_largest_eigenvalue_from_above():
+    A = grid(30)
+    rng = np.random.default_rng(1)
+    lmax = np.linalg.eigvalsh(A.toarray())[-1] + 0.5
+    est = spectrum_upper_estimate(A, 0.5, rng.normal(size=A.shape[0]))
+    assert lmax <= est <= 1.1 * lmax
+    # a start vector in an invariant subspace: the estimate is that subspace's eigenvalue, exactly
+    est1 = spectrum_upper_estimate(sp.diags([1.0, 3.0, 7.0]).tocsr(), 0.0, np.array([0.0, 1.0, 0.0]))
+    assert est1 == pytest.approx(3.0, rel=1e-14)
+
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+def test_shifted_powers_are_repeated_products(kernels):
+    A = grid(40)
+    rng = np.random.default_rng(3)
+    Y = rng.normal(size=(A.shape[0], 7))
+    with accel.use(kernels=kernels):
+        P = accel.kernels("linalg", A.shape[0]).shifted_powers(A, 0.3, Y, 2)
+        outs = [np.empty_like(Y), np.empty_like(Y)]
+        Q = accel.kernels("linalg", A.shape[0]).shifted_powers(A, 0.3, Y, 2, outs)
+    A0 = A + 0.3 * sp.eye(A.shape[0])
+    want = [Y, A0 @ Y, A0 @ (A0 @ Y)]
+    for got in (P, Q):
+        assert len(got) == 3
+        for g, w in zip(got, want):
+            assert np.allclose(g, w, rtol=1e-13, atol=1e-13 * np.abs(w).max())
+    assert Q[1] is outs[0] and Q[2] is outs[1]
