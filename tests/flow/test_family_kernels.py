@@ -106,26 +106,25 @@ def test_add_members_writes_base_plus_the_low_rank_product(kernels, cols):
 
 
 @pytest.mark.parametrize("kernels", KERNELS)
-def test_add_members_takes_pieces_side_by_side_and_rows_in_any_order(kernels):
-    """Ws[t] as a tuple of pieces (the factor's columns side by side) and ``take`` (the rows' order):
-    the same members as the one array ``np.hstack(pieces)[take]``."""
+def test_add_members_takes_pieces_side_by_side(kernels):
+    """Ws[t] as a tuple of pieces (the factor's columns side by side): the same members as the one
+    array ``np.hstack(pieces)``."""
     rng = np.random.default_rng(9)
     n, k = 9000, 5
     cols = np.array([0, 2])
     base = rng.normal(size=(n, 3))
-    take = rng.permutation(n)
     pieces = [tuple(rng.normal(size=(n, r)) for r in (3, 3, 3)), tuple(rng.normal(size=(n, r)) for r in (2, 2))]
     lefts = [rng.normal(size=(k, 9)), rng.normal(size=(k, 4))]
     members, shift_of, signs = np.arange(k), np.arange(k), np.array([1.0, -1.0, 1.0, 1.0, -1.0])
     out = np.zeros((k, n, 3))
     with accel.use(kernels=kernels):
         kern = accel.kernels("flow", n)
-        finite = kern.add_members(out, base, cols, members, shift_of, signs, lefts, pieces, k, take)
+        finite = kern.add_members(out, base, cols, members, shift_of, signs, lefts, pieces, k)
     assert finite.all()
     for p in range(k):
         want = base.copy()
         for t, j in enumerate(cols):
-            want[:, j] += signs[p] * (np.hstack(pieces[t])[take] @ lefts[t][p])
+            want[:, j] += signs[p] * (np.hstack(pieces[t]) @ lefts[t][p])
         assert np.allclose(out[p], want, rtol=1e-13, atol=1e-13)
 
 
@@ -140,13 +139,13 @@ def test_family_takes_the_low_rank_path_and_its_check_finds_a_wrong_factor(kerne
     corrupt = {"on": False}
     seen = []
 
-    def factors(self, lefts, Ws, take=None):
+    def factors(self, lefts, Ws):
         seen.append(len(lefts))
         if corrupt["on"]:
             lefts = [L.copy() for L in lefts]
             for L in lefts:
                 L[5] *= 1.0 + 1e-5          # shift 5 (ascending σ): the member of λ = −210
-        return real(self, lefts, Ws, take)
+        return real(self, lefts, Ws)
 
     monkeypatch.setattr(paths.MemberSink, "factors", factors)
     with accel.use(kernels=kernels):

@@ -99,18 +99,29 @@ def test_spectrum_estimate_is_near_the_largest_eigenvalue_from_above():
 
 
 @pytest.mark.parametrize("kernels", ["off", "force"])
-def test_shifted_powers_are_repeated_products(kernels):
+@pytest.mark.parametrize("degree", [1, 2, 3])
+def test_shifted_powers_are_repeated_products(kernels, degree):
+    """[Y, A₀Y, …] against SciPy's products, in the given memory, with rows taken by a permutation
+    (the compiled kernel scatters them) and by an index that is not one (the reference gathers)."""
     A = grid(40)
+    n = A.shape[0]
     rng = np.random.default_rng(3)
-    Y = rng.normal(size=(A.shape[0], 7))
+    Y = rng.normal(size=(n, 7))
+    A0 = A + 0.3 * sp.eye(n)
+    want = [Y]
+    for _ in range(degree):
+        want.append(A0 @ want[-1])
+    perm = rng.permutation(n)
+    some = rng.integers(0, n, n)
     with accel.use(kernels=kernels):
-        P = accel.kernels("linalg", A.shape[0]).shifted_powers(A, 0.3, Y, 2)
-        outs = [np.empty_like(Y), np.empty_like(Y)]
-        Q = accel.kernels("linalg", A.shape[0]).shifted_powers(A, 0.3, Y, 2, outs)
-    A0 = A + 0.3 * sp.eye(A.shape[0])
-    want = [Y, A0 @ Y, A0 @ (A0 @ Y)]
-    for got in (P, Q):
-        assert len(got) == 3
-        for g, w in zip(got, want):
-            assert np.allclose(g, w, rtol=1e-13, atol=1e-13 * np.abs(w).max())
-    assert Q[1] is outs[0] and Q[2] is outs[1]
+        kern = accel.kernels("linalg", n)
+        for take in (None, perm, some):
+            outs = [np.empty_like(Y) for _ in range(degree + 2)]
+            for mem in (None, outs, outs[:2]):
+                got = kern.shifted_powers(A, 0.3, Y, degree, mem, take)
+                assert len(got) == degree + 1
+                for g, w in zip(got, want):
+                    w = w if take is None else w[take]
+                    assert np.allclose(g, w, rtol=1e-13, atol=1e-13 * np.abs(w).max())
+            assert got[1] is outs[1] and (got[0] is outs[0]) == (take is not None)
+            assert np.array_equal(Y, want[0])                   # the input is left as it was

@@ -209,16 +209,15 @@ class MemberSink:
                     else:
                         out[m, :, j] -= rows[t, q]
 
-    def factors(self, lefts: list, Ws: list, take=None) -> None:
-        """Every shift's solution from its low-rank factors: column t is ``(lefts[t] @ Ws[t]ᵀ)`` with rows
-        ``take`` (Ws[t] a tuple of (n, ·) pieces side by side; see ``multishift_cg``'s ``emit``)."""
+    def factors(self, lefts: list, Ws: list) -> None:
+        """Every shift's solution from its low-rank factors: column t is ``lefts[t] @ Ws[t]ᵀ`` (Ws[t] a
+        tuple of (n, ·) pieces side by side; see ``multishift_cg``'s ``emit``)."""
         k = len(self.member_of_shift)
         members = np.concatenate(self.member_of_shift).astype(np.int64)
         shift_of = np.repeat(np.arange(k), [ms.size for ms in self.member_of_shift])
         signs = np.where(self.plus[members], 1.0, -1.0)
         kern = accel.kernels("flow", self.out.shape[1])
-        self.finite[:] = kern.add_members(self.out, self.base, self.cols, members, shift_of, signs, lefts, Ws, k,
-                                            take)
+        self.finite[:] = kern.add_members(self.out, self.base, self.cols, members, shift_of, signs, lefts, Ws, k)
         self.filled[members] = True
 
 

@@ -136,12 +136,11 @@ class FlowKernels(Family):
         return res, ynorm
 
     def add_members(self, out: np.ndarray, base: np.ndarray, cols: np.ndarray, members: np.ndarray,
-                    shift_of: np.ndarray, signs: np.ndarray, lefts: list, Ws: list, k: int,
-                    take: np.ndarray | None = None) -> np.ndarray:
+                    shift_of: np.ndarray, signs: np.ndarray, lefts: list, Ws: list, k: int) -> np.ndarray:
         """Members from the low-rank factors of a multi-shift solve: for each listed member m (shift
         q = ``shift_of`` of it), ``out[m] = base`` and, for column t, ``out[m][:, cols[t]] += signs ·
-        (lefts[t][q] @ Ws[t]ᵀ)[take]`` (``lefts[t]`` (k, r_t); ``Ws[t]`` (n, r_t) vertex-major, or a tuple
-        of (n, ·) pieces side by side; ``take`` (n,) the rows' order, None: as they are).  Returns (k,)
+        (lefts[t][q] @ Ws[t]ᵀ)`` (``lefts[t]`` (k, r_t); ``Ws[t]`` (n, r_t) vertex-major, or a tuple of
+        (n, ·) pieces side by side; the solution columns already scaled and in the mesh's order).  Returns (k,)
         bool: whether every value of shift q's solution was finite (True for a shift without a listed
         member).  The values are formed :data:`ADD_ROWS` vertices at a time (the factor's rows of the
         block gathered side by side), one GEMM per column on one thread into a block that stays in
@@ -159,8 +158,8 @@ class FlowKernels(Family):
             w = min(n, i0 + ADD_ROWS) - i0
             for t in range(c):
                 o = 0
-                for P in pieces[t]:                                 # the rows of the block, gathered
-                    parts[t][:w, o:o + P.shape[1]] = P[i0:i0 + w] if take is None else P[take[i0:i0 + w]]
+                for P in pieces[t]:                                 # the block's rows side by side
+                    parts[t][:w, o:o + P.shape[1]] = P[i0:i0 + w]
                     o += P.shape[1]
                 gemm(lefts[t], parts[t][:w], rows[t, :, :w], trans_b=True)
             finite &= self.scatter_members(out, base, cols, i0, rows[:, :, :w], members, shift_of, signs)

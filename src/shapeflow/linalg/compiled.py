@@ -550,14 +550,34 @@ class LinalgNumba(LinalgKernels):
 
         return CompiledSeed(A, B, seed, cap, coef)
 
-    def shifted_powers(self, A, seed, Y, degree, out=None):
-        if not (sp.issparse(A) and A.format == "csr" and int32_csr(A)) or Y.dtype != np.float64:
-            return super().shifted_powers(A, seed, Y, degree, out)
+    def shifted_powers(self, A, seed, Y, degree, out=None, take=None):
+        n = Y.shape[0]
+        pos = None
+        if take is not None and take.size == n:
+            pos = np.full(n, -1, np.int64)
+            pos[take] = np.arange(n)
+            if (pos < 0).any():
+                pos = None                      # not a permutation: the reference gathers
+        if (not (sp.issparse(A) and A.format == "csr" and int32_csr(A)) or Y.dtype != np.float64
+                or (take is not None and pos is None)):
+            return super().shifted_powers(A, seed, Y, degree, out, take)
         data = np.ascontiguousarray(A.data, dtype=np.float64)
-        res = [np.ascontiguousarray(Y)]
-        for i in range(degree):
-            res.append(np.empty_like(res[0]) if out is None else out[i])
-            rows_product(A.indptr, A.indices, data, float(seed), res[-2], res[-1])
+        out = list(out or [])
+        mem = [out[i] if i < len(out) else np.empty(Y.shape) for i in range(degree + 2)]
+        src = np.ascontiguousarray(Y)
+        if pos is None:                         # the powers in mem[1 …]
+            res = [src]
+            for i in range(1, degree + 1):
+                rows_product(A.indptr, A.indices, data, float(seed), res[-1], mem[i], True, mem[i], _NO_ROWS)
+                res.append(mem[i])
+            return res
+        res = [mem[i] for i in range(degree + 1)]
+        res[0][pos] = src                       # row s of the solve's order to row pos[s]
+        scratch = [mem[degree + 1], np.empty(Y.shape) if degree > 2 else None]
+        for i in range(1, degree + 1):          # each power in the solve's order too, for the next one
+            keep = scratch[(i - 1) % 2] if i < degree else res[i]      # (not stored after the last)
+            rows_product(A.indptr, A.indices, data, float(seed), src, keep, i < degree, res[i], pos)
+            src = keep
         return res
 
     def weighted_col_norms(self, A, c, Y):
@@ -572,20 +592,33 @@ class LinalgNumba(LinalgKernels):
                       f, alpha, beta, cuj, chj)
 
 
+#: ``rows_product``'s ``pos`` when the rows stay where they are
+_NO_ROWS = np.zeros(0, np.int64)
+
+
 @njit(cache=True)
-def rows_product(indptr, indices, data, seed, Y, Z):
-    """Z = (A + seed I) Y for Y, Z (n, r) C-contiguous of any width r: one pass over the matrix for all r
-    columns."""
+def rows_product(indptr, indices, data, seed, Y, Z, store, Zt, pos):
+    """Z = (A + seed I) Y (when ``store``) for Y, Z (n, r) C-contiguous of any width r, one pass over the
+    matrix for all r columns; with ``pos`` (n,) non-empty, row s is also written to row ``pos[s]`` of ``Zt``."""
     n = indptr.size - 1
     r = Y.shape[1]
+    scatter = pos.size > 0
+    acc = np.empty(r)
     for i in range(n):
         for t in range(r):
-            Z[i, t] = seed * Y[i, t]
+            acc[t] = seed * Y[i, t]
         for q in range(indptr[i], indptr[i + 1]):
             j = indices[q]
             v = data[q]
             for t in range(r):
-                Z[i, t] += v * Y[j, t]
+                acc[t] += v * Y[j, t]
+        if store:
+            for t in range(r):
+                Z[i, t] = acc[t]
+        if scatter:
+            o = pos[i]
+            for t in range(r):
+                Zt[o, t] = acc[t]
 
 
 def int32_csr(A) -> bool:

@@ -24,7 +24,11 @@ from numba import njit
 from .compiled import _entries_times3
 from .multishift import CAPPED, CHECKPOINT, DONE, GROW, PROGRESS, NumpySeed, Records, ShiftedSystems
 
-__all__ = ["CompiledSeed", "run", "replay", "DONE", "CAPPED"]
+__all__ = ["CompiledSeed", "run", "replay", "DONE", "CAPPED", "PROGRESS_EVERY"]
+
+#: iterations between two returns to report finished shifts (each return and report costs ~0.1 ms;
+#: the last shifts are reported when the pass ends)
+PROGRESS_EVERY = 8
 
 
 @njit(cache=True)
@@ -143,7 +147,8 @@ def _direction(P, R, beta):
 def run(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, delta, zeta, zeta_prev, rho, alpha_prev, beta_prev,
         tol2, active, live, iterations, ra, rb, rz, sa, sb, srho, state, maxiter):
     """The first pass of ``NumpySeed.first_pass`` until a block boundary, a finished shift, the end,
-    the cap or full records (the returned code); ``state[0]`` counts the iterations.
+    the cap or full records (the returned code); ``state[0]`` counts the iterations, ``state[1]`` is the
+    last one that returned ``PROGRESS`` (at most one every :data:`PROGRESS_EVERY` iterations).
 
     P, AP, R: the seed's direction, product and residual (n, 3), ``coef`` the polynomial
     preconditioner's coefficients (empty: none) and T, U its scratch (n, 3); Rb (c, cap, n) the first block of
@@ -222,7 +227,8 @@ def run(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, delta, zeta, zeta
         _direction(P, R, beta)
         if it % cap == 0:
             return CHECKPOINT
-        if finished:
+        if finished and it - state[1] >= PROGRESS_EVERY:
+            state[1] = it
             return PROGRESS
     return CAPPED
 
@@ -279,7 +285,7 @@ class CompiledSeed(NumpySeed):
         rho3, tol3 = np.zeros(3), np.zeros(3)
         rho3[:c], tol3[:c] = rho, tol2
         alpha_prev, beta_prev = np.ones(3), np.zeros(3)
-        state = np.zeros(1, np.int64)
+        state = np.zeros(2, np.int64)
         done = report(None)
         while True:
             st = run(self.indptr, self.indices, self.data, self.seed, self.coef, self.P, self.AP, self.T, self.U,

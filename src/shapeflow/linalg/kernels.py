@@ -98,17 +98,23 @@ class LinalgKernels(Family):
 
         return NumpySeed(A, B, seed, cap, coef)
 
-    def shifted_powers(self, A, seed: float, Y: np.ndarray, degree: int, out: list | None = None) -> list:
+    def shifted_powers(self, A, seed: float, Y: np.ndarray, degree: int, out: list | None = None,
+                       take: np.ndarray | None = None) -> list:
         """``[Y, A₀ Y, …, A₀^degree Y]``, each (n, r) C-contiguous, for ``Y`` (n, r) and A₀ = A + seed I
         (the solutions of :func:`~shapeflow.linalg.multishift.multishift_cg`'s polynomial
-        preconditioner); ``out``: ``degree`` C-contiguous (n, r) arrays to write the powers into."""
+        preconditioner), with their rows taken by ``take`` (a permutation of the n rows; None: as they
+        are).  ``out``: memory to use, up to ``degree + 2`` C-contiguous (n, r) arrays: ``out[i]`` holds
+        power i (power 0 only with ``take``: otherwise it is ``Y`` itself), ``out[degree + 1]`` is
+        scratch; what the list lacks is allocated."""
         res = [np.ascontiguousarray(Y)]
-        for i in range(degree):
-            Z = np.asarray(A @ res[-1]) + seed * res[-1]
-            if out is not None:
-                out[i][...] = Z
-                Z = out[i]
-            res.append(np.ascontiguousarray(Z))
+        for _ in range(degree):
+            res.append(np.ascontiguousarray(np.asarray(A @ res[-1]) + seed * res[-1]))
+        if take is not None:
+            res = [P[take] for P in res]
+        for i, P in enumerate(res):
+            if out is not None and i < min(len(out), degree + 1) and (i or take is not None):
+                out[i][...] = P
+                res[i] = out[i]
         return res
 
     def weighted_col_norms(self, A, c: np.ndarray, Y: np.ndarray) -> np.ndarray:

@@ -98,14 +98,14 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
         handed over as they are formed: ``emit(shifts, rows)`` with ``rows[j, q]`` column ``j``
         of the solution for shift ``shifts[q]`` (a buffer reused after the call returns).  An
         ``emit`` with a ``factors`` method is handed the low-rank factors instead when every column
-        was factorised: ``emit.factors(lefts, Ws, take)``, column j of every solution being
+        was factorised: ``emit.factors(lefts, Ws)``, column j of every solution being
         ``lefts[j] @ Ws[j]ᵀ`` ((k, r_j) in the order of ``shifts``; Ws[j] a tuple of (n, ·) vertex-major
-        pieces side by side, scaled by ``post``'s scale) with its rows taken by ``take`` (None: as they are).
+        pieces side by side, transformed by ``post``).
     post : ``(scale, take)``, either may be None: every solution column x is returned (or
         emitted) as ``(scale * x)[take]`` (applied to the low-rank factor, before the rows are formed).
     degree : a polynomial preconditioner of this degree that keeps the systems shifts of one
         operator (:mod:`~shapeflow.linalg.shift_polynomial`; 0: none).  CG then runs on
-        ``B = A₀ p(A₀)`` (A₀ = A + min(shifts) I, p Chebyshev's on [hi/100, hi], hi from 16 Lanczos
+        ``B = A₀ p(A₀)`` (A₀ = A + min(shifts) I, p Chebyshev's on [hi/100, hi], hi from 12 Lanczos
         steps) with the shifts ``β_δ = δ p(−δ)``, and each solution is ``p_δ(A₀) y``: about
         ``degree + 1`` times fewer iterations of ``degree + 1`` products each, as many fewer residuals
         stored, and ``degree`` products per row of the low-rank factor to form the solutions.  The
@@ -171,12 +171,14 @@ class SeedPolynomial:
             X += pis[:, i:i + 1] * P[i].T
         return X
 
-    def extend(self, lefts: list, Ws: list, pis: np.ndarray, spare: np.ndarray | None = None) -> None:
+    def extend(self, lefts: list, Ws: list, pis: np.ndarray, spare: np.ndarray | None = None,
+               take: np.ndarray | None = None) -> None:
         """The low-rank factors of the solutions from those of the y's, in place for each column j with
         factors (``lefts[j]`` (k, r), ``Ws[j]`` a 1-tuple of (n, r) vertex-major; None: skipped):
-        ``[pis[:, 0] left, …, pis[:, d] left]`` and the pieces ``(W, A₀ W, …, A₀^d W)`` (the linalg
-        kernel family's ``shifted_powers``), written into ``spare`` (a float64 buffer no longer needed,
-        such as the seed's block of residuals, whose pages are in memory already) while it lasts."""
+        ``[pis[:, 0] left, …, pis[:, d] left]`` and the pieces ``(W, A₀ W, …, A₀^d W)`` with their rows
+        taken by ``take`` (the linalg kernel family's ``shifted_powers``), written into ``spare`` (a
+        float64 buffer no longer needed, such as the seed's block of residuals, whose pages are in
+        memory already) while it lasts."""
         flat = np.zeros(0) if spare is None else spare.reshape(-1)
         o = 0
         for j in range(len(Ws)):
@@ -184,15 +186,13 @@ class SeedPolynomial:
                 continue
             (W,) = Ws[j]
             n, r = W.shape
-            outs = []
-            for _ in range(self.degree):
+            mem = []
+            for _ in range(self.degree + 2):
                 if o + n * r <= flat.size:
-                    outs.append(flat[o:o + n * r].reshape(n, r))
+                    mem.append(flat[o:o + n * r].reshape(n, r))
                     o += n * r
-                else:
-                    outs.append(np.empty((n, r)))
             kern = accel.kernels("linalg", n)
-            Ws[j] = tuple(kern.shifted_powers(self.A, self.seed, W, self.degree, outs))
+            Ws[j] = tuple(kern.shifted_powers(self.A, self.seed, W, self.degree, mem, take))
             lefts[j] = np.ascontiguousarray(np.concatenate([pis[:, i:i + 1] * lefts[j]
                                                             for i in range(self.degree + 1)], axis=1))
 
@@ -296,23 +296,28 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
     W = [None if w is None else (w,) for w in W]       # the factor's pieces, side by side
     if poly is not None:
         pis = poly.pis[inv]
-        poly.extend(lefts, W, pis, spare)
+        poly.extend(lefts, W, pis, spare, None if post is None else post[1])
         for t in range(len(full)):
             X[t] = poly.recover(X[t], pis)
     del spare
     scale, take = post if post is not None else (None, None)
+    if take is not None and scale is not None:
+        scale = scale[take]
     for j in range(c):
-        if factors[j] is not None and scale is not None:
-            for piece in W[j]:
-                piece *= scale[:, None]                 # rows of W are vertices: the transform is linear
+        if factors[j] is None:
+            continue
+        if take is not None and poly is None:           # rows of W are vertices: the transform is linear
+            W[j] = tuple(P[take] for P in W[j])
+        if scale is not None:
+            for P in W[j]:
+                P *= scale[:, None]
     if all(f is not None for f in factors) and hasattr(emit, "factors"):
-        emit.factors(lefts, W, take)                    # the receiver forms the rows itself
+        emit.factors(lefts, W)                          # the receiver forms the rows itself
         return nblocks, tuple(f[0].shape[1] for f in factors)
     for j in range(c):
         if factors[j] is not None:
             W[j] = W[j][0] if len(W[j]) == 1 else np.concatenate(W[j], axis=1)
-            if take is not None:
-                W[j] = W[j][take]
+    scale, take = post if post is not None else (None, None)
     chunk = min(EMIT_ROWS, k)
     buf = np.empty((c, chunk, n))                       # buf[j]: contiguous rows, one GEMM's output
     for s0 in range(0, k, chunk):

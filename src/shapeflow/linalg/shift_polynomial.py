@@ -32,8 +32,9 @@ __all__ = ["chebyshev_residual_polynomial", "shifted_polynomials", "spectrum_upp
 #: 0.05, 2026-11-26; 209 without the preconditioner)
 LOWER_FRACTION = 0.01
 
-#: Lanczos steps of :func:`spectrum_upper_estimate` (16: within 1 % above λ_max on Suzanne ×3 and ×4)
-LANCZOS_STEPS = 16
+#: Lanczos steps of :func:`spectrum_upper_estimate`: with 12 the figure-1 family's shared CG took 69 and
+#: 70 iterations on Suzanne ×3 and ×4, as with 16; with 8, 70 and 71 (2026-11-26)
+LANCZOS_STEPS = 12
 
 
 def chebyshev_residual_polynomial(degree: int, lo: float, hi: float) -> np.ndarray:
