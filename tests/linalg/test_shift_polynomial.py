@@ -101,27 +101,32 @@ def test_spectrum_estimate_is_near_the_largest_eigenvalue_from_above():
 @pytest.mark.parametrize("kernels", ["off", "force"])
 @pytest.mark.parametrize("degree", [1, 2, 3])
 def test_shifted_powers_are_repeated_products(kernels, degree):
-    """[Y, A₀Y, …] against SciPy's products, in the given memory, with rows taken by a permutation
-    (the compiled kernel scatters them) and by an index that is not one (the reference gathers)."""
+    """(scale · [Y, A₀Y, …])[take] against SciPy's products, in the given memory or not, with rows taken
+    by a permutation (the compiled kernel scatters them), by an index that is not one (the reference
+    gathers) and as they are; the input is left as it was."""
     A = grid(40)
     n = A.shape[0]
     rng = np.random.default_rng(3)
     Y = rng.normal(size=(n, 7))
+    Y0 = Y.copy()
     A0 = A + 0.3 * sp.eye(n)
-    want = [Y]
+    want = [Y0]
     for _ in range(degree):
         want.append(A0 @ want[-1])
     perm = rng.permutation(n)
     some = rng.integers(0, n, n)
+    scale = rng.uniform(0.5, 2.0, n)
     with accel.use(kernels=kernels):
         kern = accel.kernels("linalg", n)
         for take in (None, perm, some):
-            outs = [np.empty_like(Y) for _ in range(degree + 2)]
-            for mem in (None, outs, outs[:2]):
-                got = kern.shifted_powers(A, 0.3, Y, degree, mem, take)
-                assert len(got) == degree + 1
-                for g, w in zip(got, want):
-                    w = w if take is None else w[take]
-                    assert np.allclose(g, w, rtol=1e-13, atol=1e-13 * np.abs(w).max())
-            assert got[1] is outs[1] and (got[0] is outs[0]) == (take is not None)
-            assert np.array_equal(Y, want[0])                   # the input is left as it was
+            for sc in (None, scale):
+                outs = [np.empty_like(Y) for _ in range(degree + 2)]
+                for mem in (None, outs, outs[:2]):
+                    got = kern.shifted_powers(A, 0.3, Y, degree, mem, take, sc)
+                    assert len(got) == degree + 1 and got[0] is not Y
+                    for g, w in zip(got, want):
+                        w = w if sc is None else w * sc[:, None]
+                        w = w if take is None else w[take]
+                        assert np.allclose(g, w, rtol=1e-13, atol=1e-13 * np.abs(w).max())
+                assert got[1] is outs[1] and got[0] is outs[0]
+                assert np.array_equal(Y, Y0)

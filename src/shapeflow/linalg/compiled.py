@@ -550,33 +550,28 @@ class LinalgNumba(LinalgKernels):
 
         return CompiledSeed(A, B, seed, cap, coef)
 
-    def shifted_powers(self, A, seed, Y, degree, out=None, take=None):
+    def shifted_powers(self, A, seed, Y, degree, out=None, take=None, scale=None):
         n = Y.shape[0]
-        pos = None
+        pos = np.arange(n) if take is None else None
         if take is not None and take.size == n:
             pos = np.full(n, -1, np.int64)
-            pos[take] = np.arange(n)
+            pos[take] = np.arange(n)            # row s goes to row pos[s]
             if (pos < 0).any():
                 pos = None                      # not a permutation: the reference gathers
         if (not (sp.issparse(A) and A.format == "csr" and int32_csr(A)) or Y.dtype != np.float64
-                or (take is not None and pos is None)):
-            return super().shifted_powers(A, seed, Y, degree, out, take)
+                or pos is None):
+            return super().shifted_powers(A, seed, Y, degree, out, take, scale)
         data = np.ascontiguousarray(A.data, dtype=np.float64)
         out = list(out or [])
         mem = [out[i] if i < len(out) else np.empty(Y.shape) for i in range(degree + 2)]
-        src = np.ascontiguousarray(Y)
-        if pos is None:                         # the powers in mem[1 …]
-            res = [src]
-            for i in range(1, degree + 1):
-                rows_product(A.indptr, A.indices, data, float(seed), res[-1], mem[i], True, mem[i], _NO_ROWS)
-                res.append(mem[i])
-            return res
+        sc = _NO_SCALE if scale is None else np.ascontiguousarray(scale, dtype=np.float64)
         res = [mem[i] for i in range(degree + 1)]
-        res[0][pos] = src                       # row s of the solve's order to row pos[s]
         scratch = [mem[degree + 1], np.empty(Y.shape) if degree > 2 else None]
+        src = np.ascontiguousarray(Y)
         for i in range(1, degree + 1):          # each power in the solve's order too, for the next one
             keep = scratch[(i - 1) % 2] if i < degree else res[i]      # (not stored after the last)
-            rows_product(A.indptr, A.indices, data, float(seed), src, keep, i < degree, res[i], pos)
+            rows_product(A.indptr, A.indices, data, float(seed), src, keep, i < degree, res[i], pos, sc,
+                         res[0] if i == 1 else _NO_ROWS2)
             src = keep
         return res
 
@@ -592,17 +587,20 @@ class LinalgNumba(LinalgKernels):
                       f, alpha, beta, cuj, chj)
 
 
-#: ``rows_product``'s ``pos`` when the rows stay where they are
-_NO_ROWS = np.zeros(0, np.int64)
+#: ``rows_product``'s empty arguments: no scale, no copy of the input rows
+_NO_SCALE = np.zeros(0)
+_NO_ROWS2 = np.zeros((0, 1))
 
 
 @njit(cache=True)
-def rows_product(indptr, indices, data, seed, Y, Z, store, Zt, pos):
-    """Z = (A + seed I) Y (when ``store``) for Y, Z (n, r) C-contiguous of any width r, one pass over the
-    matrix for all r columns; with ``pos`` (n,) non-empty, row s is also written to row ``pos[s]`` of ``Zt``."""
+def rows_product(indptr, indices, data, seed, Y, Z, store, Zt, pos, sc, Yt):
+    """For Y (n, r) C-contiguous of any width r, one pass over the matrix for all r columns: row s of
+    (A + seed I) Y into row s of Z (when ``store``) and, times ``sc[s]`` (``sc`` empty: 1), into row
+    ``pos[s]`` of ``Zt``; with ``Yt`` non-empty, row s of Y times ``sc[s]`` into its row ``pos[s]``."""
     n = indptr.size - 1
     r = Y.shape[1]
-    scatter = pos.size > 0
+    scaled = sc.size > 0
+    copy = Yt.shape[0] > 0
     acc = np.empty(r)
     for i in range(n):
         for t in range(r):
@@ -615,10 +613,13 @@ def rows_product(indptr, indices, data, seed, Y, Z, store, Zt, pos):
         if store:
             for t in range(r):
                 Z[i, t] = acc[t]
-        if scatter:
-            o = pos[i]
+        o = pos[i]
+        s = sc[i] if scaled else 1.0
+        for t in range(r):
+            Zt[o, t] = acc[t] * s
+        if copy:
             for t in range(r):
-                Zt[o, t] = acc[t]
+                Yt[o, t] = Y[i, t] * s
 
 
 def int32_csr(A) -> bool:

@@ -99,22 +99,26 @@ class LinalgKernels(Family):
         return NumpySeed(A, B, seed, cap, coef)
 
     def shifted_powers(self, A, seed: float, Y: np.ndarray, degree: int, out: list | None = None,
-                       take: np.ndarray | None = None) -> list:
-        """``[Y, A₀ Y, …, A₀^degree Y]``, each (n, r) C-contiguous, for ``Y`` (n, r) and A₀ = A + seed I
-        (the solutions of :func:`~shapeflow.linalg.multishift.multishift_cg`'s polynomial
-        preconditioner), with their rows taken by ``take`` (a permutation of the n rows; None: as they
-        are).  ``out``: memory to use, up to ``degree + 2`` C-contiguous (n, r) arrays: ``out[i]`` holds
-        power i (power 0 only with ``take``: otherwise it is ``Y`` itself), ``out[degree + 1]`` is
-        scratch; what the list lacks is allocated."""
+                       take: np.ndarray | None = None, scale: np.ndarray | None = None) -> list:
+        """``[Y, A₀ Y, …, A₀^degree Y]`` for ``Y`` (n, r) and A₀ = A + seed I (the solutions of
+        :func:`~shapeflow.linalg.multishift.multishift_cg`'s polynomial preconditioner), each row s times
+        ``scale[s]`` and the rows then taken by ``take`` (None: as they are): ``(scale · power)[take]``,
+        each (·, r) C-contiguous, ``Y`` itself left as it is.  ``out``: memory to use, up to
+        ``degree + 2`` C-contiguous arrays of Y's shape (the last one scratch); what the list lacks is
+        allocated."""
         res = [np.ascontiguousarray(Y)]
         for _ in range(degree):
             res.append(np.ascontiguousarray(np.asarray(A @ res[-1]) + seed * res[-1]))
+        if scale is not None:
+            res = [P * scale[:, None] for P in res]
         if take is not None:
             res = [P[take] for P in res]
-        for i, P in enumerate(res):
-            if out is not None and i < min(len(out), degree + 1) and (i or take is not None):
-                out[i][...] = P
+        for i in range(min(len(out or []), degree + 1)):
+            if out[i].shape == res[i].shape:
+                out[i][...] = res[i]
                 res[i] = out[i]
+        if res[0] is Y:
+            res[0] = Y.copy()
         return res
 
     def weighted_col_norms(self, A, c: np.ndarray, Y: np.ndarray) -> np.ndarray:

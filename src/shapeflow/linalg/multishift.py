@@ -172,13 +172,14 @@ class SeedPolynomial:
         return X
 
     def extend(self, lefts: list, Ws: list, pis: np.ndarray, spare: np.ndarray | None = None,
-               take: np.ndarray | None = None) -> None:
+               post: tuple | None = None) -> None:
         """The low-rank factors of the solutions from those of the y's, in place for each column j with
         factors (``lefts[j]`` (k, r), ``Ws[j]`` a 1-tuple of (n, r) vertex-major; None: skipped):
-        ``[pis[:, 0] left, …, pis[:, d] left]`` and the pieces ``(W, A₀ W, …, A₀^d W)`` with their rows
-        taken by ``take`` (the linalg kernel family's ``shifted_powers``), written into ``spare`` (a
-        float64 buffer no longer needed, such as the seed's block of residuals, whose pages are in
-        memory already) while it lasts."""
+        ``[pis[:, 0] left, …, pis[:, d] left]`` and the pieces ``(W, A₀ W, …, A₀^d W)`` transformed by
+        ``post`` = (scale, take) (the linalg kernel family's ``shifted_powers``), written into
+        ``spare`` (a float64 buffer no longer needed, such as the seed's block of residuals, whose
+        pages are in memory already) while it lasts."""
+        scale, take = post if post is not None else (None, None)
         flat = np.zeros(0) if spare is None else spare.reshape(-1)
         o = 0
         for j in range(len(Ws)):
@@ -192,7 +193,7 @@ class SeedPolynomial:
                     mem.append(flat[o:o + n * r].reshape(n, r))
                     o += n * r
             kern = accel.kernels("linalg", n)
-            Ws[j] = tuple(kern.shifted_powers(self.A, self.seed, W, self.degree, mem, take))
+            Ws[j] = tuple(kern.shifted_powers(self.A, self.seed, W, self.degree, mem, take, scale))
             lefts[j] = np.ascontiguousarray(np.concatenate([pis[:, i:i + 1] * lefts[j]
                                                             for i in range(self.degree + 1)], axis=1))
 
@@ -296,28 +297,24 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
     W = [None if w is None else (w,) for w in W]       # the factor's pieces, side by side
     if poly is not None:
         pis = poly.pis[inv]
-        poly.extend(lefts, W, pis, spare, None if post is None else post[1])
+        poly.extend(lefts, W, pis, spare, post)         # the pieces transformed by post
         for t in range(len(full)):
             X[t] = poly.recover(X[t], pis)
     del spare
     scale, take = post if post is not None else (None, None)
-    if take is not None and scale is not None:
-        scale = scale[take]
     for j in range(c):
-        if factors[j] is None:
+        if factors[j] is None or poly is not None:
             continue
-        if take is not None and poly is None:           # rows of W are vertices: the transform is linear
-            W[j] = tuple(P[take] for P in W[j])
+        (P,) = W[j]                                     # rows of W are vertices: the transform is linear
         if scale is not None:
-            for P in W[j]:
-                P *= scale[:, None]
+            P *= scale[:, None]
+        W[j] = (P if take is None else P[take],)
     if all(f is not None for f in factors) and hasattr(emit, "factors"):
         emit.factors(lefts, W)                          # the receiver forms the rows itself
         return nblocks, tuple(f[0].shape[1] for f in factors)
     for j in range(c):
         if factors[j] is not None:
             W[j] = W[j][0] if len(W[j]) == 1 else np.concatenate(W[j], axis=1)
-    scale, take = post if post is not None else (None, None)
     chunk = min(EMIT_ROWS, k)
     buf = np.empty((c, chunk, n))                       # buf[j]: contiguous rows, one GEMM's output
     for s0 in range(0, k, chunk):
