@@ -59,6 +59,8 @@ TORUS_BLENDER = Pick("subdivision-blender", r"Blender Subdivision Surface", sect
 FAMILY = (Pick("family", r"before:|family, fresh mesh|x flow\(\), warm|after:"),)
 FAMILY_BLENDER = Pick("family-blender", r"x Blender Laplacian Smooth", after=1)
 RATIO = (Pick("family-ratio", r"before:|after:"), Pick("family-ratio", r"^  kernels (auto|force)", after=1))
+RATIO_126K = (Pick("family-ratio-126k", r"before:|after:"),
+              Pick("family-ratio-126k", r"^  kernels (auto|force)", after=1))
 BRUSH_TABLE = Pick("brush", r".", section=r"^median wall ms per dab")
 BRUSH_SIZES = Pick("brush-sizes", r"suzanne x|large / small|load average")
 ADDON = (Pick("addon", r"^Blender \d|load average"), Pick("addon", r"^shapeflow_flow|Laplacian Smooth modifier"))
@@ -80,8 +82,9 @@ FIGURES: tuple[Figure, ...] = (
     Figure(README, "| flow on 937,730 vertices |", "0.89 s, 1.16 GB peak", (FLOW_1M,)),
     Figure(README, "| a 50M-vertex triangle scan (binary PLY)", "20 s + 43 s + 11 s, 20.1 GB peak", SCAN["50M"]),
     Figure(README, "| family of 48 shapes, 46,850 vertices |",
-           "1.1 s; Suzanne ×3 compiled 3.55× one flow() (one thread), 4.09× (default threads); "
-           "48 × flow() 17.5 s; 48 × Blender ≈ 181 s", (*FAMILY, *RATIO, FAMILY_BLENDER)),
+           "0.68 s; Suzanne ×3 1.8× default kernels, compiled 2.9× (one thread), 3.1× (default threads); "
+           "Suzanne ×4 2.8–3.7×; 48 × flow() 16.0 s; 48 × Blender ≈ 123 s", (*FAMILY, *RATIO, *RATIO_126K,
+                                                                            FAMILY_BLENDER)),
     Figure(README, "| Catmull–Clark level 2, 40K → 640K vertices |", "369 ms; Blender's Subdivision Surface 242 ms",
            (TORUS_SUB, TORUS_BLENDER)),
     Figure(README, "| brush dab with 2,600 vertices inside (11K–187K-vertex meshes) |",
@@ -120,10 +123,11 @@ FIGURES: tuple[Figure, ...] = (
     Figure(PERF, "| Catmull–Clark level 2, 40,000 → 640,000 vertices — `bench_subdivision.py` |",
            "369 ms; one S @ V frame 20 ms; Blender 242 ms", (TORUS_SUB, TORUS_SV, TORUS_BLENDER)),
     Figure(PERF, "| family of 48 shapes (figure 1), 46,850 vertices — `bench_family.py` |",
-           "1,100 ms fresh; 48 × flow() 17.5 s (17×); 48 × Blender ≈ 181 s (from 4)", (*FAMILY, FAMILY_BLENDER)),
+           "684 ms fresh; 48 × flow() 16.0 s (25×); 48 × Blender ≈ 123 s (from 4)", (*FAMILY, FAMILY_BLENDER)),
     Figure(PERF, "| family of 48 shapes (λ = 0 … −235) against one `flow()` at λ = −235",
-           "forced: 917 / 243 ms 4.09× (default threads), 838 / 218 ms 3.55× (one thread); auto: 1,234 / 675 ms "
-           "1.90×, 872 / 716 ms 1.49×; member vs flow() 1.8e-10 (1.1e-10 on NumPy); load 8–10", RATIO),
+           "×3 forced: 238 / 81 ms 2.93× (one thread), 252 / 82 ms 3.08× (default threads); auto: 423 / 236 ms "
+           "1.78×, 422 / 235 ms 1.81×; ×4: 2.80–3.69×; member vs flow() 2.0e-10 (1.8e-10 on NumPy, 8.1e-11 on ×4)",
+           (*RATIO, *RATIO_126K)),
     Figure(PERF, "| brush dab with 2,600 vertices inside, meshes of 11K–187K vertices — `bench_brush.py` |",
            "2.64–4.73 ms over three runs (p90 ≤ 5.3); 800: 0.98–1.63; 1,800: 2.03–2.94; --sizes 3.18 / 3.12 ms "
            "(CPU 2.88 / 2.85)", (Pick("brush", r"load average"), Pick("brush", r"^\s+(800|1800|2600) inside"),
@@ -135,11 +139,12 @@ FIGURES: tuple[Figure, ...] = (
            "0.30–0.34 s (re-run 0.15 s); Blender's modifier 8.6 s", ADDON),
     Figure(PERF, "gives 90.8 against 89.6 ms idle (default against one thread)",
            "90.8 / 89.6 ms idle; two busy processes 125 / 131 ms", (CONTENTION,)),
-    Figure(PERF, "it adds 48–56 ms, 19 % of the",
-           "+48–56 ms, 19 %: 378 / 322 ms NumPy/SciPy, 321 / 273 ms forced (15 rounds, load 2.3)",
+    Figure(PERF, "costs 1.12× the family with the compiled kernels forced",
+           "1.12× forced (237 / 209 ms), 1.19× NumPy/SciPy (431 / 361 ms); 15 rounds, load 1.0",
            (Pick("family-check-cost", r"before:|after:|^  kernels"),)),
-    Figure(PERF, "Krylov space needs 209 iterations where `flow()`'s symmetric Gauss–Seidel CG needs 95",
-           "209 against 95 iterations; 3.5–4.1× compiled, 1.5–1.9× NumPy", RATIO),
+    Figure(PERF, "family is 2.93× one `flow()` on one thread",
+           "69 iterations of 3 products against 95; 2.93× / 3.08× compiled on ×3, 1.78–1.81× NumPy, 2.80–3.69× on ×4",
+           (*RATIO, *RATIO_126K)),
     Figure(PERF, "| dab, wall (p10–p90) | 3.18 ms (2.57–7.60)", "3.18 (2.57–7.60) / 3.12 (2.58–10.19) ms, 0.98",
            (BRUSH_SIZES,)),
     Figure(PERF, "| dab, CPU time | 2.88 ms | 2.85 ms", "2.88 / 2.85 ms, 0.99", (BRUSH_SIZES,)),
@@ -195,10 +200,10 @@ UNMEASURED: tuple[Unmeasured, ...] = (
                _PROFILE + "; the 0.83–0.85 of the previous version: " + _GONE),
     Unmeasured(PERF, "Measured: at λ = 300 CG 0.39 s", _PROFILE),
     Unmeasured(PERF, "27.3 against 24.2 ms for the same 7 iterations", _GONE),
-    Unmeasured(PERF, "(rank 16 of 47 on the figure-1", _PROFILE + " (also the BLAS-thread times 0.2 / 0.4–0.8 s)"),
+    Unmeasured(PERF, "(rank 15–16 of", _PROFILE + " (also the BLAS-thread times 0.2 / 0.4–0.8 s)"),
     Unmeasured(PERF, "the 144 column products are ~15 ms", _PROFILE),
     Unmeasured(PERF, "iteration writes one more residual triple to memory (~0.3 ms of ~0.8 ms here)", _PROFILE),
-    Unmeasured(PERF, "| polynomial preconditioner p_δ(A)", "the table of options not adopted: " + _GONE),
+    Unmeasured(PERF, "| polynomial preconditioner of degree 1", "the table of options not adopted: " + _GONE),
     Unmeasured(PERF, "systems, 0.65–0.88× the one-band solve",
                "36 captured dab systems: " + _PROFILE + "; bench_brush.py --solvers times the solvers per dab size"),
     Unmeasured(PERF, "padded to 65 (a band-63 system", _PROFILE),

@@ -17,7 +17,7 @@ from .pairs import PairMatrix
 
 
 @njit(inline="always")
-def _entries_times3(q0, q1, indices, data, B):
+def entries_times3(q0, q1, indices, data, B):
     """The CSR entries q0 … q1 − 1 of a row of A times the three columns of B."""
     a0 = 0.0
     a1 = 0.0
@@ -82,7 +82,7 @@ def _spmm_dot(indptr, indices, data, P, AP, nt):
         q0 = indptr[i0] if i0 < i1 else 0
         for i in range(i0, i1):
             q1 = indptr[i + 1]
-            a0, a1, a2 = _entries_times3(q0, q1, indices, data, P)
+            a0, a1, a2 = entries_times3(q0, q1, indices, data, P)
             q0 = q1
             AP[i, 0] = a0
             AP[i, 1] = a1
@@ -265,7 +265,7 @@ def clenshaw_step(indptr, indices, data, cinv, B1, B2, X0, H0, f, alpha, beta, c
     """One step of ``solvers.chebyshev_steps``: B2 <- f·Ã B1 − B2 + cu X0 + ch H0 (in place), fused."""
     n = indptr.size - 1
     for i in prange(n):
-        a0, a1, a2 = _entries_times3(indptr[i], indptr[i + 1], indices, data, B1)
+        a0, a1, a2 = entries_times3(indptr[i], indptr[i + 1], indices, data, B1)
         ci = cinv[i] * alpha
         B2[i, 0] = f * (ci * a0 - beta * B1[i, 0]) - B2[i, 0] + cu * X0[i, 0] + ch * H0[i, 0]
         B2[i, 1] = f * (ci * a1 - beta * B1[i, 1]) - B2[i, 1] + cu * X0[i, 1] + ch * H0[i, 1]
@@ -551,29 +551,10 @@ class LinalgNumba(LinalgKernels):
         return CompiledSeed(A, B, seed, cap, coef)
 
     def shifted_powers(self, A, seed, Y, degree, out=None, take=None, scale=None):
-        n = Y.shape[0]
-        pos = np.arange(n) if take is None else None
-        if take is not None and take.size == n:
-            pos = np.full(n, -1, np.int64)
-            pos[take] = np.arange(n)            # row s goes to row pos[s]
-            if (pos < 0).any():
-                pos = None                      # not a permutation: the reference gathers
-        if (not (sp.issparse(A) and A.format == "csr" and int32_csr(A)) or Y.dtype != np.float64
-                or pos is None):
-            return super().shifted_powers(A, seed, Y, degree, out, take, scale)
-        data = np.ascontiguousarray(A.data, dtype=np.float64)
-        out = list(out or [])
-        mem = [out[i] if i < len(out) else np.empty(Y.shape) for i in range(degree + 2)]
-        sc = _NO_SCALE if scale is None else np.ascontiguousarray(scale, dtype=np.float64)
-        res = [mem[i] for i in range(degree + 1)]
-        scratch = [mem[degree + 1], np.empty(Y.shape) if degree > 2 else None]
-        src = np.ascontiguousarray(Y)
-        for i in range(1, degree + 1):          # each power in the solve's order too, for the next one
-            keep = scratch[(i - 1) % 2] if i < degree else res[i]      # (not stored after the last)
-            rows_product(A.indptr, A.indices, data, float(seed), src, keep, i < degree, res[i], pos, sc,
-                         res[0] if i == 1 else _NO_ROWS2)
-            src = keep
-        return res
+        from .compiled_shift import shifted_powers
+
+        res = shifted_powers(A, seed, Y, degree, out, take, scale)
+        return super().shifted_powers(A, seed, Y, degree, out, take, scale) if res is None else res
 
     def weighted_col_norms(self, A, c, Y):
         if not (int32_csr(A) and Y.shape[1] == 3 and Y.flags.c_contiguous):
@@ -585,41 +566,6 @@ class LinalgNumba(LinalgKernels):
             return super().clenshaw_step(A, cinv, B1, B2, X0, H0, f, alpha, beta, cuj, chj)
         clenshaw_step(A.indptr, A.indices, np.ascontiguousarray(A.data, dtype=np.float64), cinv, B1, B2, X0, H0,
                       f, alpha, beta, cuj, chj)
-
-
-#: ``rows_product``'s empty arguments: no scale, no copy of the input rows
-_NO_SCALE = np.zeros(0)
-_NO_ROWS2 = np.zeros((0, 1))
-
-
-@njit(cache=True)
-def rows_product(indptr, indices, data, seed, Y, Z, store, Zt, pos, sc, Yt):
-    """For Y (n, r) C-contiguous of any width r, one pass over the matrix for all r columns: row s of
-    (A + seed I) Y into row s of Z (when ``store``) and, times ``sc[s]`` (``sc`` empty: 1), into row
-    ``pos[s]`` of ``Zt``; with ``Yt`` non-empty, row s of Y times ``sc[s]`` into its row ``pos[s]``."""
-    n = indptr.size - 1
-    r = Y.shape[1]
-    scaled = sc.size > 0
-    copy = Yt.shape[0] > 0
-    acc = np.empty(r)
-    for i in range(n):
-        for t in range(r):
-            acc[t] = seed * Y[i, t]
-        for q in range(indptr[i], indptr[i + 1]):
-            j = indices[q]
-            v = data[q]
-            for t in range(r):
-                acc[t] += v * Y[j, t]
-        if store:
-            for t in range(r):
-                Z[i, t] = acc[t]
-        o = pos[i]
-        s = sc[i] if scaled else 1.0
-        for t in range(r):
-            Zt[o, t] = acc[t] * s
-        if copy:
-            for t in range(r):
-                Yt[o, t] = Y[i, t] * s
 
 
 def int32_csr(A) -> bool:

@@ -16,15 +16,16 @@ Conventions of all compiled kernels: :mod:`shapeflow.accel`.
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 from numba import njit
 
 # what :func:`run` returns: every (shift, column) finished, a block boundary passed (save the
 # state), a shift finished in every column (report progress), the iteration cap, the records are
 # full (grow them)
-from .compiled import _entries_times3
+from .compiled import entries_times3, int32_csr
 from .multishift import CAPPED, CHECKPOINT, DONE, GROW, PROGRESS, NumpySeed, Records, ShiftedSystems
 
-__all__ = ["CompiledSeed", "run", "replay", "DONE", "CAPPED", "PROGRESS_EVERY"]
+__all__ = ["CompiledSeed", "run", "replay", "shifted_powers", "rows_product", "DONE", "CAPPED", "PROGRESS_EVERY"]
 
 #: iterations between two returns to report finished shifts (each return and report costs ~0.1 ms;
 #: the last shifts are reported when the pass ends)
@@ -40,7 +41,7 @@ def _product(indptr, indices, data, seed, P, AP):
 @njit(inline="always")
 def _shifted_row(indptr, indices, data, seed, X, i):
     """Row i of (A + seed I) X, three columns."""
-    a0, a1, a2 = _entries_times3(indptr[i], indptr[i + 1], indices, data, X)
+    a0, a1, a2 = entries_times3(indptr[i], indptr[i + 1], indices, data, X)
     return a0 + seed * X[i, 0], a1 + seed * X[i, 1], a2 + seed * X[i, 2]
 
 
@@ -289,9 +290,8 @@ class CompiledSeed(NumpySeed):
         done = report(None)
         while True:
             st = run(self.indptr, self.indices, self.data, self.seed, self.coef, self.P, self.AP, self.T, self.U,
-                     self.R, self.Rb,
-                               delta, zeta, zeta_prev, rho3, alpha_prev, beta_prev, tol3, active, sh.live, iterations,
-                               rec.ra, rec.rb, rec.rz, rec.sa, rec.sb, rec.srho, state, sh.maxiter)
+                     self.R, self.Rb, delta, zeta, zeta_prev, rho3, alpha_prev, beta_prev, tol3, active, sh.live,
+                     iterations, rec.ra, rec.rb, rec.rz, rec.sa, rec.sb, rec.srho, state, sh.maxiter)
             done = report(done)
             if st == GROW:
                 rec.grow()
@@ -303,6 +303,69 @@ class CompiledSeed(NumpySeed):
     def replay(self, b: int, t0: int, t1: int) -> None:
         self.R, self.P = self.saved.pop(b)
         replay(self.indptr, self.indices, self.data, self.seed, self.coef, self.P, self.AP, self.T, self.U,
-               self.R, self.Rb,
-                         self.rec.sa, self.rec.sb, t0, t1)
+               self.R, self.Rb, self.rec.sa, self.rec.sb, t0, t1)
         self.replayed += t1 - t0 - 1
+
+
+def shifted_powers(A, seed, Y, degree, out=None, take=None, scale=None):
+    """``LinalgKernels.shifted_powers`` compiled for an int32 CSR matrix and ``take`` None or a
+    permutation: each power in one pass over the matrix (:func:`rows_product`), its rows written scaled
+    and in place; None where it does not apply (the caller falls back to the reference)."""
+    n = Y.shape[0]
+    pos = np.arange(n) if take is None else None
+    if take is not None and take.size == n:
+        pos = np.full(n, -1, np.int64)
+        pos[take] = np.arange(n)            # row s goes to row pos[s]
+        if (pos < 0).any():
+            pos = None                      # not a permutation: the reference gathers
+    if (not (sp.issparse(A) and A.format == "csr" and int32_csr(A)) or Y.dtype != np.float64
+            or pos is None or degree < 1):
+        return None
+    data = np.ascontiguousarray(A.data, dtype=np.float64)
+    out = list(out or [])
+    mem = [out[i] if i < len(out) else np.empty(Y.shape) for i in range(degree + 2)]
+    sc = _NO_SCALE if scale is None else np.ascontiguousarray(scale, dtype=np.float64)
+    res = [mem[i] for i in range(degree + 1)]
+    scratch = [mem[degree + 1], np.empty(Y.shape) if degree > 2 else None]
+    src = np.ascontiguousarray(Y)
+    for i in range(1, degree + 1):          # each power in the solve's order too, for the next one
+        keep = scratch[(i - 1) % 2] if i < degree else res[i]      # (not stored after the last)
+        rows_product(A.indptr, A.indices, data, float(seed), src, keep, i < degree, res[i], pos, sc,
+                     res[0] if i == 1 else _NO_ROWS2)
+        src = keep
+    return res
+
+
+#: ``rows_product``'s empty arguments: no scale, no copy of the input rows
+_NO_SCALE = np.zeros(0)
+_NO_ROWS2 = np.zeros((0, 1))
+
+
+@njit(cache=True)
+def rows_product(indptr, indices, data, seed, Y, Z, store, Zt, pos, sc, Yt):
+    """For Y (n, r) C-contiguous of any width r, one pass over the matrix for all r columns: row s of
+    (A + seed I) Y into row s of Z (when ``store``) and, times ``sc[s]`` (``sc`` empty: 1), into row
+    ``pos[s]`` of ``Zt``; with ``Yt`` non-empty, row s of Y times ``sc[s]`` into its row ``pos[s]``."""
+    n = indptr.size - 1
+    r = Y.shape[1]
+    scaled = sc.size > 0
+    copy = Yt.shape[0] > 0
+    acc = np.empty(r)
+    for i in range(n):
+        for t in range(r):
+            acc[t] = seed * Y[i, t]
+        for q in range(indptr[i], indptr[i + 1]):
+            j = indices[q]
+            v = data[q]
+            for t in range(r):
+                acc[t] += v * Y[j, t]
+        if store:
+            for t in range(r):
+                Z[i, t] = acc[t]
+        o = pos[i]
+        s = sc[i] if scaled else 1.0
+        for t in range(r):
+            Zt[o, t] = acc[t] * s
+        if copy:
+            for t in range(r):
+                Yt[o, t] = Y[i, t] * s
