@@ -56,7 +56,7 @@ BLENDER_COMPAT = Pick("flow-blender", r"compat='blender' agrees")
 TORUS_SUB = Pick("subdivision", r"subdivide\(levels=2\)\s+\d", section=r"^quad torus")
 TORUS_SV = Pick("subdivision", r"S @ V", section=r"^quad torus")
 TORUS_BLENDER = Pick("subdivision-blender", r"Blender Subdivision Surface", section=r"^quad torus")
-FAMILY = (Pick("family", r"before:|family, fresh mesh|x flow\(\), warm|after:"),)
+FAMILY = (Pick("family", r"before:|family, fresh mesh|family, warm topology|x flow\(\), warm|after:"),)
 FAMILY_BLENDER = Pick("family-blender", r"x Blender Laplacian Smooth", after=1)
 RATIO = (Pick("family-ratio", r"before:|after:"), Pick("family-ratio", r"^  kernels (auto|force)", after=1))
 RATIO_126K = (Pick("family-ratio-126k", r"before:|after:"),
@@ -122,8 +122,9 @@ FIGURES: tuple[Figure, ...] = (
            "plyfile is not among bench_io.py's readers: its 620 ms is not re-measured"),
     Figure(PERF, "| Catmull–Clark level 2, 40,000 → 640,000 vertices — `bench_subdivision.py` |",
            "369 ms; one S @ V frame 20 ms; Blender 242 ms", (TORUS_SUB, TORUS_SV, TORUS_BLENDER)),
-    Figure(PERF, "| family of 48 shapes (figure 1), 46,850 vertices — `bench_family.py` |",
-           "684 ms fresh; 48 × flow() 16.0 s (25×); 48 × Blender ≈ 123 s (from 4)", (*FAMILY, FAMILY_BLENDER)),
+    Figure(PERF, "| family of 48 shapes (figure 1's λ = 0, −5, …, −235), 46,850 vertices — `bench_family.py` |",
+           "684 ms fresh, 640 ms warm; 48 × flow() 16.0 s (25× warm); 48 × Blender ≈ 123 s (from 4)",
+           (*FAMILY, FAMILY_BLENDER)),
     Figure(PERF, "| family of 48 shapes (λ = 0 … −235) against one `flow()` at λ = −235",
            "×3 forced: 238 / 81 ms 2.93× (one thread), 252 / 82 ms 3.08× (default threads); auto: 423 / 236 ms "
            "1.78×, 422 / 235 ms 1.81×; ×4: 2.80–3.69×; member vs flow() 2.0e-10 (1.8e-10 on NumPy, 8.1e-11 on ×4)",

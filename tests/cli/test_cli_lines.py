@@ -68,7 +68,7 @@ def test_the_family_says_its_shared_solve_in_words(tmp_path, capsys):
     line = err.splitlines()[-1]
     assert line.startswith("shapeflow family: 3 members, λ 0 .. -10, 2930 vertices: one multi-shift CG solve for 2 "
                            "distinct |λ| (")
-    assert ("(one iteration: the members' systems are one matrix plus 1/|λ| on its diagonal, with one right-hand "
+    assert ("(a single flow step: the members' systems are one matrix plus 1/|λ| on its diagonal, with one right-hand "
             "side, so one solve serves them all)") in line
     assert "σ" not in line and "3 members: 3 members" not in line
     said = commands.Collector()

@@ -91,7 +91,7 @@ def add_parser(sub) -> None:
 
 
 #: the shared solve of a one-iteration family, said without the solver's notation (the report keeps it)
-SHARED_SOLVE = ("one iteration: the members' systems are one matrix plus 1/|λ| on its diagonal, with one "
+SHARED_SOLVE = ("a single flow step: the members' systems are one matrix plus 1/|λ| on its diagonal, with one "
                 "right-hand side, so one solve serves them all")
 
 

@@ -27,12 +27,12 @@ __all__ = ["chebyshev_residual_polynomial", "shifted_polynomials", "spectrum_upp
            "LOWER_FRACTION", "LANCZOS_STEPS"]
 
 #: the interval's lower end as a fraction of its upper one (the systems' smallest eigenvalue is not
-#: estimated: on the seed system of the figure-1 family on Suzanne ×3, λ_min/λ_max ≈ 0.002, degree 2
+#: estimated: on the seed system of figure 1's 48 members on Suzanne ×3, μ_min/μ_max ≈ 0.002, degree 2
 #: took 92, 70, 69, 69, 70 and 73 iterations with the fractions 0.001, 0.002, 0.005, 0.01, 0.02 and
 #: 0.05, 2026-11-26; 209 without the preconditioner)
 LOWER_FRACTION = 0.01
 
-#: Lanczos steps of :func:`spectrum_upper_estimate`: with 12 the figure-1 family's shared CG took 69 and
+#: Lanczos steps of :func:`spectrum_upper_estimate`: with 12 the shared CG of figure 1's 48 members took 69 and
 #: 70 iterations on Suzanne ×3 and ×4, as with 16; with 8, 70 and 71 (2026-11-26)
 LANCZOS_STEPS = 12
 
