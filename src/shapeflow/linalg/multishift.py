@@ -9,7 +9,7 @@ import numpy as np
 import scipy.linalg
 from scipy.linalg.blas import dgemm
 
-from .. import accel
+from .. import accel, params
 from ..errors import ParameterError
 from .blas import SingleThreadBLAS
 from .shift_polynomial import (
@@ -135,12 +135,17 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
     ``[π_0 L, …, π_d L]`` with p_δ's coefficients π: the solutions' factors, of rank (d + 1) r.
 
     """
-    if int(degree) != degree or degree < 0:
+    if isinstance(degree, bool) or not isinstance(degree, (int, np.integer, float)) or not (
+            degree >= 0 and int(degree) == degree):
         raise ParameterError(f"degree must be a non-negative integer, got {degree!r}")
+    rtol = params.rtol(rtol)
     sh = ShiftedSystems(B, shifts, rtol, maxiter)
+    shape = getattr(A, "shape", None)
+    if shape is not None and tuple(shape) != (sh.n, sh.n):
+        raise ParameterError(f"A must be ({sh.n}, {sh.n}) for B's columns of {sh.n} entries, got {tuple(shape)}")
     if sh.result is not None:
         return sh.result
-    poly = SeedPolynomial(A, sh, int(degree)) if degree else None
+    poly = SeedPolynomial.fitting(A, sh, int(degree), rtol) if degree else None
     seed_cg = accel.kernels("linalg", sh.n).multishift_seed(A, sh.B, sh.seed, sh.block_slots(block_bytes),
                                                             None if poly is None else poly.coef)
     return sh.solve(seed_cg, rtol if low_rank else None, progress, emit, post, poly)
@@ -152,15 +157,30 @@ class SeedPolynomial:
     of the original ones, and ``pis`` (k, d + 1): the coefficients of each
     shift's p_δ, in the sorted order of ``sh``."""
 
-    def __init__(self, A, sh: ShiftedSystems, degree: int):
-        self.A, self.seed, self.degree = A, sh.seed, degree
+    def __init__(self, A, sh: ShiftedSystems, degree: int, coef: np.ndarray, betas: np.ndarray, pis: np.ndarray):
+        self.A, self.seed, self.degree, self.coef, self.pis = A, sh.seed, degree, coef, pis
+        sh.delta = np.ascontiguousarray(betas)
+
+    @classmethod
+    def fitting(cls, A, sh: ShiftedSystems, degree: int, rtol: float) -> SeedPolynomial | None:
+        """The preconditioner of the highest degree up to ``degree`` whose monomial form is exact enough
+        (rounding of Horner's scheme on the spectrum, ε Σ|p_j| hi^{j+1}, at most ``rtol``: it is that of
+        the products CG iterates with) and whose coefficients, β_δ and p_δ are finite and p's non-zero
+        (they scale as hi^{−j−1} and δ^{d+1}); None (no preconditioner) where none is."""
         start = sh.B[int(np.argmax(sh.rho))]
         hi = spectrum_upper_estimate(A, sh.seed, start)
         if not (hi > 0 and np.isfinite(hi)):
             raise ParameterError(f"A + {sh.seed:g} I is not positive definite (largest Ritz value {hi:g})")
-        self.coef = chebyshev_residual_polynomial(degree, LOWER_FRACTION * hi, hi)
-        betas, self.pis = shifted_polynomials(self.coef, sh.delta)
-        sh.delta = np.ascontiguousarray(betas)
+        eps = np.finfo(np.float64).eps
+        with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+            for d in range(degree, 0, -1):                  # (over the degrees)
+                coef = chebyshev_residual_polynomial(d, LOWER_FRACTION * hi, hi)
+                rounding = eps * float(np.sum(np.abs(coef) * hi ** np.arange(1, d + 2)))
+                betas, pis = shifted_polynomials(coef, sh.delta)
+                if (rounding <= rtol and np.all(coef != 0) and np.isfinite(betas).all()
+                        and np.isfinite(pis).all()):
+                    return cls(A, sh, d, coef, betas, pis)
+        return None
 
     def recover(self, Y: np.ndarray, pis: np.ndarray) -> np.ndarray:
         """The solutions ``Σ_i pis[:, i] A₀^i Y`` of the rows of ``Y`` (k, n) (row s by its own p_δ)."""
@@ -211,12 +231,17 @@ class ShiftedSystems:
         self.result = None
         if k and not np.all(np.isfinite(shifts)):
             raise ParameterError("shifts must be finite")
+        if not np.all(np.isfinite(B)):
+            raise ParameterError(f"B must be finite (column {int(np.flatnonzero(~np.isfinite(B).all(axis=1))[0])} "
+                                 "is not)")
+        if maxiter is not None and (isinstance(maxiter, bool) or int(maxiter) != maxiter or maxiter < 0):
+            raise ParameterError(f"maxiter must be a non-negative integer or None, got {maxiter!r}")
         self.order = np.argsort(shifts, kind="stable")      # hardest (smallest shift) first
         self.inv = np.argsort(self.order)
         self.shifts = shifts[self.order]
         self.seed = float(self.shifts[0]) if k else 0.0
         self.delta = np.ascontiguousarray(self.shifts - self.seed)   # (k,) >= 0
-        self.maxiter = max(200, 10 * int(np.sqrt(n)) + 100) if maxiter is None else maxiter
+        self.maxiter = max(200, 10 * int(np.sqrt(n)) + 100) if maxiter is None else int(maxiter)
         self.rho = np.einsum("ij,ij->i", B, B)                # (c,)
         self.tol2 = rtol * rtol * self.rho
         self.active = np.broadcast_to(self.rho > self.tol2, (k, c)).copy()  # (shift, column) not yet within rtol
@@ -224,7 +249,7 @@ class ShiftedSystems:
         self.iterations = np.where(self.active, -1, 0)
         if not self.active.any():
             self.result = MultiShiftResult(np.zeros((c, k, n)), self.iterations[self.inv],
-                                           ~self.active[self.inv], 0, 0)
+                                           self.iterations[self.inv] >= 0, 0, 0)
 
     def block_slots(self, block_bytes: int) -> int:
         """Seed residuals stored in the first block (and in every replayed one)."""
@@ -245,7 +270,8 @@ class ShiftedSystems:
             def emit(shifts, rows):
                 X[:, shifts] = rows
         flushes, ranks = fold(seed_cg, rec, m, stop, self.inv, rtol, emit, post, poly)
-        return MultiShiftResult(X, self.iterations[self.inv], ~self.active[self.inv], m, flushes,
+        # converged: met rtol (a column whose seed broke down stops without meeting it)
+        return MultiShiftResult(X, self.iterations[self.inv], self.iterations[self.inv] >= 0, m, flushes,
                                 seed_cg.replayed, ranks, 0 if poly is None else poly.degree)
 
 
@@ -365,10 +391,14 @@ def low_rank_factors(C: np.ndarray, rho: np.ndarray, tol: float):
     k, m = C.shape
     nr = np.sqrt(np.maximum(rho, 0.0))
     Cn = C * nr
+    big = np.max(np.abs(Cn), axis=1, initial=0.0)
+    big = np.where(big > 0, big, 1.0)                   # (rows scaled by their largest entry first: the
+    Cn /= big[:, None]                                  # squares of iterates ~1e155 and beyond overflow)
     size = np.linalg.norm(Cn, axis=1)
     size = np.where(size > 0, size, 1.0)
     with SingleThreadBLAS():      # a small SVD: OpenBLAS's threads only wait for each other
         U, S, Vt = scipy.linalg.svd(Cn / size[:, None], full_matrices=False, check_finite=False)
+    size *= big
     r = int(np.count_nonzero(S > tol))
     if r * (m + k) > LOW_RANK_GAIN * k * m:
         return None
@@ -403,16 +433,16 @@ def member_coefficients(ra: np.ndarray, rb: np.ndarray, rz: np.ndarray, m: int,
 
 class Records:
     """The scalars of the first pass: per (column, shift, iteration) α_s, β_s, ζ_s; per
-    iteration the seed's α, β and ρ = rᵀr (three columns, unused ones 0).  Grown on demand."""
+    iteration the seed's α, β and ρ = rᵀr (at least three columns, unused ones 0).  Grown on demand."""
 
     def __init__(self, c: int, k: int, size: int):
         self.ra = np.zeros((c, k, size))
         self.rb = np.zeros((c, k, size))
         self.rz = np.zeros((c, k, size))
         self.rz[:, :, 0] = 1.0                          # p_s(0) = r_0 for every shift
-        self.sa = np.zeros((size, 3))
-        self.sb = np.zeros((size, 3))
-        self.srho = np.zeros((size, 3))
+        self.sa = np.zeros((size, max(3, c)))
+        self.sb = np.zeros((size, max(3, c)))
+        self.srho = np.zeros((size, max(3, c)))
 
     def grow(self) -> None:
         for name in ("ra", "rb", "rz"):

@@ -79,8 +79,12 @@ def spectrum_upper_estimate(A, seed: float, v: np.ndarray, steps: int = LANCZOS_
     def dot(x, y):              # (einsum, not BLAS: a threaded BLAS's workers would spin beside the solve)
         return float(np.einsum("i,i->", x, y))
 
+    def norm(x):                # (scaled by its largest entry: no overflow of the squares)
+        m = float(np.max(np.abs(x), initial=0.0))
+        return m * np.sqrt(dot(x / m, x / m)) if 0.0 < m < np.inf else m
+
     q = np.asarray(v, dtype=np.float64)
-    nq = np.sqrt(dot(q, q))
+    nq = norm(q)
     if not (nq > 0 and np.isfinite(nq)):
         raise ParameterError("the start vector of the spectrum estimate must be finite and non-zero")
     q = q / nq
@@ -91,13 +95,16 @@ def spectrum_upper_estimate(A, seed: float, v: np.ndarray, steps: int = LANCZOS_
         w = A @ q + seed * q - beta * q_prev
         a = dot(q, w)
         w -= a * q
-        beta = np.sqrt(dot(w, w))
+        beta = norm(w)
         alphas.append(a)
         betas.append(beta)
         if not beta > 1e-12 * max(abs(a), 1e-300):      # an invariant subspace: the Ritz values are exact
             break
         q_prev, q = q, w / beta
+    alphas, betas = np.array(alphas), np.array(betas)
+    size = float(np.max(np.abs(np.r_[alphas, betas])))
+    size = size if 0.0 < size < np.inf else 1.0        # (LAPACK's bisection squares the entries)
     with SingleThreadBLAS():
-        ev, U = scipy.linalg.eigh_tridiagonal(np.array(alphas), np.array(betas[:-1]), select="i",
+        ev, U = scipy.linalg.eigh_tridiagonal(alphas / size, betas[:-1] / size, select="i",
                                               select_range=(len(alphas) - 1, len(alphas) - 1))
-    return float(ev[-1] + abs(betas[-1] * U[-1, -1]))
+    return float(size * (ev[-1] + abs(betas[-1] / size * U[-1, -1])))
