@@ -160,3 +160,48 @@ def test_high_degrees_keep_the_tolerance(kernels, degree):
         res = multishift_cg(A, B, shifts, rtol=1e-8, degree=degree)
     assert res.converged.all() and 1 <= res.degree < degree
     claimed_residuals_hold(A, B, shifts, res, 1e-8)
+
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+@pytest.mark.parametrize("degree", [0, 2])
+@pytest.mark.parametrize("factors", [False, True])
+def test_post_takes_any_rows(kernels, degree, factors):
+    # take a subset, repeats and negative indices (not a permutation): the rows (scale · x)[take], as
+    # NumPy forms them from the solutions collected in X
+    A = grid_laplacian(30)
+    n = A.shape[0]
+    rng = np.random.default_rng(8)
+    B = rng.standard_normal((3, n))
+    shifts = np.geomspace(0.01, 10, 6)
+    scale = rng.uniform(0.5, 2.0, n)
+    with accel.use(kernels=kernels):
+        ref = multishift_cg(A, B, shifts, rtol=1e-10, degree=degree)
+        for take in (np.arange(0, n, 3), rng.integers(-n, n, 2 * n), np.zeros(0, np.int64)):
+            got = {}
+
+            class Receiver:
+                def __call__(self, idx, rows):
+                    for q, i in enumerate(idx):
+                        got[int(i)] = rows[:, q].copy()
+
+            if factors:
+                def whole(self, lefts, Ws):
+                    for i in range(shifts.size):
+                        got[i] = np.stack([lefts[j][i] @ np.concatenate(Ws[j], axis=1).T for j in range(3)])
+                Receiver.factors = whole
+            multishift_cg(A, B, shifts, rtol=1e-10, degree=degree, emit=Receiver(), post=(scale, take))
+            whole_x = multishift_cg(A, B, shifts, rtol=1e-10, degree=degree, post=(scale, take)).X
+            want = (ref.X * scale)[:, :, take]
+            assert sorted(got) == list(range(shifts.size)) and whole_x.shape == want.shape
+            for i in range(shifts.size):
+                assert np.allclose(got[i], want[:, i], rtol=1e-9, atol=1e-9 * np.abs(want).max(initial=1.0))
+                assert np.allclose(whole_x[:, i], want[:, i], rtol=1e-9, atol=1e-9 * np.abs(want).max(initial=1.0))
+
+
+def test_bad_post_raises_parameter_errors():
+    A = grid_laplacian(10)
+    B = np.ones((1, A.shape[0]))
+    for post in ((np.ones(7), None), (np.full(100, np.nan), None), (None, np.array([0, 100])),
+                 (None, np.array([0.5, 1.0])), (None, np.ones((2, 2), int))):
+        with pytest.raises(ParameterError, match="post"):
+            multishift_cg(A, B, [0.1, 1.0], post=post)

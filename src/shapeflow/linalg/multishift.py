@@ -12,12 +12,7 @@ from scipy.linalg.blas import dgemm
 from .. import accel, params
 from ..errors import ParameterError
 from .blas import SingleThreadBLAS
-from .shift_polynomial import (
-    LOWER_FRACTION,
-    chebyshev_residual_polynomial,
-    shifted_polynomials,
-    spectrum_upper_estimate,
-)
+from .shift_polynomial import SeedPolynomial
 from .spd import DEFAULT_RTOL
 
 __all__ = ["BLOCK_BYTES", "RANK_TOL", "TRUE_RESIDUAL_FACTOR", "MultiShiftResult", "multishift_cg",
@@ -143,6 +138,7 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
     shape = getattr(A, "shape", None)
     if shape is not None and tuple(shape) != (sh.n, sh.n):
         raise ParameterError(f"A must be ({sh.n}, {sh.n}) for B's columns of {sh.n} entries, got {tuple(shape)}")
+    post = check_post(post, sh.n)
     if sh.result is not None:
         return sh.result
     poly = SeedPolynomial.fitting(A, sh, int(degree), rtol) if degree else None
@@ -151,71 +147,17 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
     return sh.solve(seed_cg, rtol if low_rank else None, progress, emit, post, poly)
 
 
-class SeedPolynomial:
-    """The polynomial preconditioner of :func:`multishift_cg` (``degree``) on ``A₀ = A + seed I``: its
-    coefficients ``coef`` (p_0 … p_d), the shifts of B = A₀ p(A₀) written into ``sh.delta`` in place
-    of the original ones, and ``pis`` (k, d + 1): the coefficients of each
-    shift's p_δ, in the sorted order of ``sh``."""
-
-    def __init__(self, A, sh: ShiftedSystems, degree: int, coef: np.ndarray, betas: np.ndarray, pis: np.ndarray):
-        self.A, self.seed, self.degree, self.coef, self.pis = A, sh.seed, degree, coef, pis
-        sh.delta = np.ascontiguousarray(betas)
-
-    @classmethod
-    def fitting(cls, A, sh: ShiftedSystems, degree: int, rtol: float) -> SeedPolynomial | None:
-        """The preconditioner of the highest degree up to ``degree`` whose monomial form is exact enough
-        (rounding of Horner's scheme on the spectrum, ε Σ|p_j| hi^{j+1}, at most ``rtol``: it is that of
-        the products CG iterates with) and whose coefficients, β_δ and p_δ are finite and p's non-zero
-        (they scale as hi^{−j−1} and δ^{d+1}); None (no preconditioner) where none is."""
-        start = sh.B[int(np.argmax(sh.rho))]
-        hi = spectrum_upper_estimate(A, sh.seed, start)
-        if not (hi > 0 and np.isfinite(hi)):
-            raise ParameterError(f"A + {sh.seed:g} I is not positive definite (largest Ritz value {hi:g})")
-        eps = np.finfo(np.float64).eps
-        with np.errstate(over="ignore", under="ignore", invalid="ignore"):
-            for d in range(degree, 0, -1):                  # (over the degrees)
-                coef = chebyshev_residual_polynomial(d, LOWER_FRACTION * hi, hi)
-                rounding = eps * float(np.sum(np.abs(coef) * hi ** np.arange(1, d + 2)))
-                betas, pis = shifted_polynomials(coef, sh.delta)
-                if (rounding <= rtol and np.all(coef != 0) and np.isfinite(betas).all()
-                        and np.isfinite(pis).all()):
-                    return cls(A, sh, d, coef, betas, pis)
-        return None
-
-    def recover(self, Y: np.ndarray, pis: np.ndarray) -> np.ndarray:
-        """The solutions ``Σ_i pis[:, i] A₀^i Y`` of the rows of ``Y`` (k, n) (row s by its own p_δ)."""
-        P = accel.kernels("linalg", Y.shape[1]).shifted_powers(self.A, self.seed, np.ascontiguousarray(Y.T),
-                                                              self.degree)
-        X = pis[:, :1] * Y
-        for i in range(1, self.degree + 1):
-            X += pis[:, i:i + 1] * P[i].T
-        return X
-
-    def extend(self, lefts: list, Ws: list, pis: np.ndarray, spare: np.ndarray | None = None,
-               post: tuple | None = None) -> None:
-        """The low-rank factors of the solutions from those of the y's, in place for each column j with
-        factors (``lefts[j]`` (k, r), ``Ws[j]`` a 1-tuple of (n, r) vertex-major; None: skipped):
-        ``[pis[:, 0] left, …, pis[:, d] left]`` and the pieces ``(W, A₀ W, …, A₀^d W)`` transformed by
-        ``post`` = (scale, take) (the linalg kernel family's ``shifted_powers``), written into
-        ``spare`` (a float64 buffer no longer needed, such as the seed's block of residuals, whose
-        pages are in memory already) while it lasts."""
-        scale, take = post if post is not None else (None, None)
-        flat = np.zeros(0) if spare is None else spare.reshape(-1)
-        o = 0
-        for j in range(len(Ws)):
-            if Ws[j] is None:
-                continue
-            (W,) = Ws[j]
-            n, r = W.shape
-            mem = []
-            for _ in range(self.degree + 2):
-                if o + n * r <= flat.size:
-                    mem.append(flat[o:o + n * r].reshape(n, r))
-                    o += n * r
-            kern = accel.kernels("linalg", n)
-            Ws[j] = tuple(kern.shifted_powers(self.A, self.seed, W, self.degree, mem, take, scale))
-            lefts[j] = np.ascontiguousarray(np.concatenate([pis[:, i:i + 1] * lefts[j]
-                                                            for i in range(self.degree + 1)], axis=1))
+def check_post(post, n: int) -> tuple:
+    """``post`` as ``(scale, take)``: scale None or (n,) finite, take None or int64 row indices in [0, n)."""
+    scale, take = (None, None) if post is None else post
+    scale = None if scale is None else np.ascontiguousarray(scale, dtype=np.float64)
+    if scale is not None and (scale.shape != (n,) or not np.isfinite(scale).all()):
+        raise ParameterError(f"post's scale must be {n} finite numbers (one per row), got shape {scale.shape}")
+    take = None if take is None else np.asarray(take)
+    if take is not None and (take.ndim != 1 or take.dtype.kind not in "iu" or (
+            take.size and not -n <= take.min() <= take.max() < n)):
+        raise ParameterError(f"post's take must be a 1-D array of row indices in [-{n}, {n})")
+    return scale, None if take is None else np.where(take < 0, take + n, take).astype(np.int64)
 
 
 class ShiftedSystems:
@@ -232,8 +174,7 @@ class ShiftedSystems:
         if k and not np.all(np.isfinite(shifts)):
             raise ParameterError("shifts must be finite")
         if not np.all(np.isfinite(B)):
-            raise ParameterError(f"B must be finite (column {int(np.flatnonzero(~np.isfinite(B).all(axis=1))[0])} "
-                                 "is not)")
+            raise ParameterError(f"B must be finite (column {int(np.argmin(np.isfinite(B).all(axis=1)))} is not)")
         if maxiter is not None and (isinstance(maxiter, bool) or int(maxiter) != maxiter or maxiter < 0):
             raise ParameterError(f"maxiter must be a non-negative integer or None, got {maxiter!r}")
         self.order = np.argsort(shifts, kind="stable")      # hardest (smallest shift) first
@@ -265,7 +206,7 @@ class ShiftedSystems:
         stop = np.where(self.iterations >= 0, self.iterations, m).T   # (c, k): where each shift met rtol
         X = None
         if emit is None:
-            X = np.empty((self.c, self.k, self.n))
+            X = np.empty((self.c, self.k, self.n if post is None or post[1] is None else post[1].size))
 
             def emit(shifts, rows):
                 X[:, shifts] = rows
@@ -293,6 +234,7 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
     """
     c, k = stop.shape
     n, cap = seed_cg.n, seed_cg.cap
+    scale, take = post if post is not None else (None, None)
     factors = [None] * c
     if rtol is not None and 20 * min(k, m) < n:
         C = member_coefficients(rec.ra, rec.rb, rec.rz, m)
@@ -327,7 +269,6 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
         for t in range(len(full)):
             X[t] = poly.recover(X[t], pis)
     del spare
-    scale, take = post if post is not None else (None, None)
     for j in range(c):
         if factors[j] is None or poly is not None:
             continue
@@ -342,7 +283,7 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
         if factors[j] is not None:
             W[j] = W[j][0] if len(W[j]) == 1 else np.concatenate(W[j], axis=1)
     chunk = min(EMIT_ROWS, k)
-    buf = np.empty((c, chunk, n))                       # buf[j]: contiguous rows, one GEMM's output
+    buf = np.empty((c, chunk, n if take is None else take.size))    # buf[j]: contiguous rows, one GEMM's output
     for s0 in range(0, k, chunk):
         q = min(chunk, k - s0)
         for j in range(c):
