@@ -144,7 +144,7 @@ def _direction(P, R, beta):
         P[i, 2] = R[i, 2] + b2 * P[i, 2]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")     # (x / 0 is ±inf or NaN, as in NumpySeed: ζ of a finished shift)
 def run(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, delta, zeta, zeta_prev, rho, alpha_prev, beta_prev,
         tol2, active, live, iterations, ra, rb, rz, sa, sb, srho, state, maxiter):
     """The first pass of ``NumpySeed.first_pass`` until a block boundary, a finished shift, the end,

@@ -9,15 +9,10 @@ import numpy as np
 import scipy.linalg
 from scipy.linalg.blas import dgemm
 
-from .. import accel
+from .. import accel, params
 from ..errors import ParameterError
 from .blas import SingleThreadBLAS
-from .shift_polynomial import (
-    LOWER_FRACTION,
-    chebyshev_residual_polynomial,
-    shifted_polynomials,
-    spectrum_upper_estimate,
-)
+from .shift_polynomial import SeedPolynomial
 from .spd import DEFAULT_RTOL
 
 __all__ = ["BLOCK_BYTES", "RANK_TOL", "TRUE_RESIDUAL_FACTOR", "MultiShiftResult", "multishift_cg",
@@ -135,67 +130,34 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
     ``[π_0 L, …, π_d L]`` with p_δ's coefficients π: the solutions' factors, of rank (d + 1) r.
 
     """
-    if int(degree) != degree or degree < 0:
+    if isinstance(degree, bool) or not isinstance(degree, (int, np.integer, float)) or not (
+            degree >= 0 and int(degree) == degree):
         raise ParameterError(f"degree must be a non-negative integer, got {degree!r}")
+    rtol = params.rtol(rtol)
     sh = ShiftedSystems(B, shifts, rtol, maxiter)
+    shape = getattr(A, "shape", None)
+    if shape is not None and tuple(shape) != (sh.n, sh.n):
+        raise ParameterError(f"A must be ({sh.n}, {sh.n}) for B's columns of {sh.n} entries, got {tuple(shape)}")
+    post = check_post(post, sh.n)
     if sh.result is not None:
         return sh.result
-    poly = SeedPolynomial(A, sh, int(degree)) if degree else None
+    poly = SeedPolynomial.fitting(A, sh, int(degree), rtol) if degree else None
     seed_cg = accel.kernels("linalg", sh.n).multishift_seed(A, sh.B, sh.seed, sh.block_slots(block_bytes),
                                                             None if poly is None else poly.coef)
     return sh.solve(seed_cg, rtol if low_rank else None, progress, emit, post, poly)
 
 
-class SeedPolynomial:
-    """The polynomial preconditioner of :func:`multishift_cg` (``degree``) on ``A₀ = A + seed I``: its
-    coefficients ``coef`` (p_0 … p_d), the shifts of B = A₀ p(A₀) written into ``sh.delta`` in place
-    of the original ones, and ``pis`` (k, d + 1): the coefficients of each
-    shift's p_δ, in the sorted order of ``sh``."""
-
-    def __init__(self, A, sh: ShiftedSystems, degree: int):
-        self.A, self.seed, self.degree = A, sh.seed, degree
-        start = sh.B[int(np.argmax(sh.rho))]
-        hi = spectrum_upper_estimate(A, sh.seed, start)
-        if not (hi > 0 and np.isfinite(hi)):
-            raise ParameterError(f"A + {sh.seed:g} I is not positive definite (largest Ritz value {hi:g})")
-        self.coef = chebyshev_residual_polynomial(degree, LOWER_FRACTION * hi, hi)
-        betas, self.pis = shifted_polynomials(self.coef, sh.delta)
-        sh.delta = np.ascontiguousarray(betas)
-
-    def recover(self, Y: np.ndarray, pis: np.ndarray) -> np.ndarray:
-        """The solutions ``Σ_i pis[:, i] A₀^i Y`` of the rows of ``Y`` (k, n) (row s by its own p_δ)."""
-        P = accel.kernels("linalg", Y.shape[1]).shifted_powers(self.A, self.seed, np.ascontiguousarray(Y.T),
-                                                              self.degree)
-        X = pis[:, :1] * Y
-        for i in range(1, self.degree + 1):
-            X += pis[:, i:i + 1] * P[i].T
-        return X
-
-    def extend(self, lefts: list, Ws: list, pis: np.ndarray, spare: np.ndarray | None = None,
-               post: tuple | None = None) -> None:
-        """The low-rank factors of the solutions from those of the y's, in place for each column j with
-        factors (``lefts[j]`` (k, r), ``Ws[j]`` a 1-tuple of (n, r) vertex-major; None: skipped):
-        ``[pis[:, 0] left, …, pis[:, d] left]`` and the pieces ``(W, A₀ W, …, A₀^d W)`` transformed by
-        ``post`` = (scale, take) (the linalg kernel family's ``shifted_powers``), written into
-        ``spare`` (a float64 buffer no longer needed, such as the seed's block of residuals, whose
-        pages are in memory already) while it lasts."""
-        scale, take = post if post is not None else (None, None)
-        flat = np.zeros(0) if spare is None else spare.reshape(-1)
-        o = 0
-        for j in range(len(Ws)):
-            if Ws[j] is None:
-                continue
-            (W,) = Ws[j]
-            n, r = W.shape
-            mem = []
-            for _ in range(self.degree + 2):
-                if o + n * r <= flat.size:
-                    mem.append(flat[o:o + n * r].reshape(n, r))
-                    o += n * r
-            kern = accel.kernels("linalg", n)
-            Ws[j] = tuple(kern.shifted_powers(self.A, self.seed, W, self.degree, mem, take, scale))
-            lefts[j] = np.ascontiguousarray(np.concatenate([pis[:, i:i + 1] * lefts[j]
-                                                            for i in range(self.degree + 1)], axis=1))
+def check_post(post, n: int) -> tuple:
+    """``post`` as ``(scale, take)``: scale None or (n,) finite, take None or int64 row indices in [0, n)."""
+    scale, take = (None, None) if post is None else post
+    scale = None if scale is None else np.ascontiguousarray(scale, dtype=np.float64)
+    if scale is not None and (scale.shape != (n,) or not np.isfinite(scale).all()):
+        raise ParameterError(f"post's scale must be {n} finite numbers (one per row), got shape {scale.shape}")
+    take = None if take is None else np.asarray(take)
+    if take is not None and (take.ndim != 1 or take.dtype.kind not in "iu" or (
+            take.size and not -n <= take.min() <= take.max() < n)):
+        raise ParameterError(f"post's take must be a 1-D array of row indices in [-{n}, {n})")
+    return scale, None if take is None else np.where(take < 0, take + n, take).astype(np.int64)
 
 
 class ShiftedSystems:
@@ -211,12 +173,16 @@ class ShiftedSystems:
         self.result = None
         if k and not np.all(np.isfinite(shifts)):
             raise ParameterError("shifts must be finite")
+        if not np.all(np.isfinite(B)):
+            raise ParameterError(f"B must be finite (column {int(np.argmin(np.isfinite(B).all(axis=1)))} is not)")
+        if maxiter is not None and (isinstance(maxiter, bool) or int(maxiter) != maxiter or maxiter < 0):
+            raise ParameterError(f"maxiter must be a non-negative integer or None, got {maxiter!r}")
         self.order = np.argsort(shifts, kind="stable")      # hardest (smallest shift) first
         self.inv = np.argsort(self.order)
         self.shifts = shifts[self.order]
         self.seed = float(self.shifts[0]) if k else 0.0
         self.delta = np.ascontiguousarray(self.shifts - self.seed)   # (k,) >= 0
-        self.maxiter = max(200, 10 * int(np.sqrt(n)) + 100) if maxiter is None else maxiter
+        self.maxiter = max(200, 10 * int(np.sqrt(n)) + 100) if maxiter is None else int(maxiter)
         self.rho = np.einsum("ij,ij->i", B, B)                # (c,)
         self.tol2 = rtol * rtol * self.rho
         self.active = np.broadcast_to(self.rho > self.tol2, (k, c)).copy()  # (shift, column) not yet within rtol
@@ -224,7 +190,7 @@ class ShiftedSystems:
         self.iterations = np.where(self.active, -1, 0)
         if not self.active.any():
             self.result = MultiShiftResult(np.zeros((c, k, n)), self.iterations[self.inv],
-                                           ~self.active[self.inv], 0, 0)
+                                           self.iterations[self.inv] >= 0, 0, 0)
 
     def block_slots(self, block_bytes: int) -> int:
         """Seed residuals stored in the first block (and in every replayed one)."""
@@ -240,12 +206,13 @@ class ShiftedSystems:
         stop = np.where(self.iterations >= 0, self.iterations, m).T   # (c, k): where each shift met rtol
         X = None
         if emit is None:
-            X = np.empty((self.c, self.k, self.n))
+            X = np.empty((self.c, self.k, self.n if post is None or post[1] is None else post[1].size))
 
             def emit(shifts, rows):
                 X[:, shifts] = rows
         flushes, ranks = fold(seed_cg, rec, m, stop, self.inv, rtol, emit, post, poly)
-        return MultiShiftResult(X, self.iterations[self.inv], ~self.active[self.inv], m, flushes,
+        # converged: met rtol (a column whose seed broke down stops without meeting it)
+        return MultiShiftResult(X, self.iterations[self.inv], self.iterations[self.inv] >= 0, m, flushes,
                                 seed_cg.replayed, ranks, 0 if poly is None else poly.degree)
 
 
@@ -267,6 +234,7 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
     """
     c, k = stop.shape
     n, cap = seed_cg.n, seed_cg.cap
+    scale, take = post if post is not None else (None, None)
     factors = [None] * c
     if rtol is not None and 20 * min(k, m) < n:
         C = member_coefficients(rec.ra, rec.rb, rec.rz, m)
@@ -301,7 +269,6 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
         for t in range(len(full)):
             X[t] = poly.recover(X[t], pis)
     del spare
-    scale, take = post if post is not None else (None, None)
     for j in range(c):
         if factors[j] is None or poly is not None:
             continue
@@ -316,7 +283,7 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
         if factors[j] is not None:
             W[j] = W[j][0] if len(W[j]) == 1 else np.concatenate(W[j], axis=1)
     chunk = min(EMIT_ROWS, k)
-    buf = np.empty((c, chunk, n))                       # buf[j]: contiguous rows, one GEMM's output
+    buf = np.empty((c, chunk, n if take is None else take.size))    # buf[j]: contiguous rows, one GEMM's output
     for s0 in range(0, k, chunk):
         q = min(chunk, k - s0)
         for j in range(c):
@@ -365,10 +332,14 @@ def low_rank_factors(C: np.ndarray, rho: np.ndarray, tol: float):
     k, m = C.shape
     nr = np.sqrt(np.maximum(rho, 0.0))
     Cn = C * nr
+    big = np.max(np.abs(Cn), axis=1, initial=0.0)
+    big = np.where(big > 0, big, 1.0)                   # (rows scaled by their largest entry first: the
+    Cn /= big[:, None]                                  # squares of iterates ~1e155 and beyond overflow)
     size = np.linalg.norm(Cn, axis=1)
     size = np.where(size > 0, size, 1.0)
     with SingleThreadBLAS():      # a small SVD: OpenBLAS's threads only wait for each other
         U, S, Vt = scipy.linalg.svd(Cn / size[:, None], full_matrices=False, check_finite=False)
+    size *= big
     r = int(np.count_nonzero(S > tol))
     if r * (m + k) > LOW_RANK_GAIN * k * m:
         return None
@@ -403,16 +374,16 @@ def member_coefficients(ra: np.ndarray, rb: np.ndarray, rz: np.ndarray, m: int,
 
 class Records:
     """The scalars of the first pass: per (column, shift, iteration) α_s, β_s, ζ_s; per
-    iteration the seed's α, β and ρ = rᵀr (three columns, unused ones 0).  Grown on demand."""
+    iteration the seed's α, β and ρ = rᵀr (at least three columns, unused ones 0).  Grown on demand."""
 
     def __init__(self, c: int, k: int, size: int):
         self.ra = np.zeros((c, k, size))
         self.rb = np.zeros((c, k, size))
         self.rz = np.zeros((c, k, size))
         self.rz[:, :, 0] = 1.0                          # p_s(0) = r_0 for every shift
-        self.sa = np.zeros((size, 3))
-        self.sb = np.zeros((size, 3))
-        self.srho = np.zeros((size, 3))
+        self.sa = np.zeros((size, max(3, c)))
+        self.sb = np.zeros((size, max(3, c)))
+        self.srho = np.zeros((size, max(3, c)))
 
     def grow(self) -> None:
         for name in ("ra", "rb", "rz"):

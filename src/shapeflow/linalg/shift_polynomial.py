@@ -17,14 +17,20 @@ grows with δ.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 import scipy.linalg
 
+from .. import accel
 from ..errors import ParameterError
 from .blas import SingleThreadBLAS
 
+if TYPE_CHECKING:
+    from .multishift import ShiftedSystems
+
 __all__ = ["chebyshev_residual_polynomial", "shifted_polynomials", "spectrum_upper_estimate",
-           "LOWER_FRACTION", "LANCZOS_STEPS"]
+           "LOWER_FRACTION", "LANCZOS_STEPS", "SeedPolynomial"]
 
 #: the interval's lower end as a fraction of its upper one (the systems' smallest eigenvalue is not
 #: estimated: on the seed system of figure 1's 48 members on Suzanne ×3, μ_min/μ_max ≈ 0.002, degree 2
@@ -79,8 +85,12 @@ def spectrum_upper_estimate(A, seed: float, v: np.ndarray, steps: int = LANCZOS_
     def dot(x, y):              # (einsum, not BLAS: a threaded BLAS's workers would spin beside the solve)
         return float(np.einsum("i,i->", x, y))
 
+    def norm(x):                # (scaled by its largest entry: no overflow of the squares)
+        m = float(np.max(np.abs(x), initial=0.0))
+        return m * np.sqrt(dot(x / m, x / m)) if 0.0 < m < np.inf else m
+
     q = np.asarray(v, dtype=np.float64)
-    nq = np.sqrt(dot(q, q))
+    nq = norm(q)
     if not (nq > 0 and np.isfinite(nq)):
         raise ParameterError("the start vector of the spectrum estimate must be finite and non-zero")
     q = q / nq
@@ -91,13 +101,83 @@ def spectrum_upper_estimate(A, seed: float, v: np.ndarray, steps: int = LANCZOS_
         w = A @ q + seed * q - beta * q_prev
         a = dot(q, w)
         w -= a * q
-        beta = np.sqrt(dot(w, w))
+        beta = norm(w)
         alphas.append(a)
         betas.append(beta)
         if not beta > 1e-12 * max(abs(a), 1e-300):      # an invariant subspace: the Ritz values are exact
             break
         q_prev, q = q, w / beta
+    alphas, betas = np.array(alphas), np.array(betas)
+    size = float(np.max(np.abs(np.r_[alphas, betas])))
+    size = size if 0.0 < size < np.inf else 1.0        # (LAPACK's bisection squares the entries)
     with SingleThreadBLAS():
-        ev, U = scipy.linalg.eigh_tridiagonal(np.array(alphas), np.array(betas[:-1]), select="i",
+        ev, U = scipy.linalg.eigh_tridiagonal(alphas / size, betas[:-1] / size, select="i",
                                               select_range=(len(alphas) - 1, len(alphas) - 1))
-    return float(ev[-1] + abs(betas[-1] * U[-1, -1]))
+    return float(size * (ev[-1] + abs(betas[-1] / size * U[-1, -1])))
+
+
+class SeedPolynomial:
+    """The polynomial preconditioner of :func:`~shapeflow.linalg.multishift.multishift_cg` (``degree``) on
+    ``A₀ = A + seed I``: its coefficients ``coef`` (p_0 … p_d), the shifts of B = A₀ p(A₀) written into
+    ``sh.delta`` in place of the original ones, and ``pis`` (k, d + 1): the coefficients of each shift's p_δ,
+    in the sorted order of ``sh`` (a :class:`~shapeflow.linalg.multishift.ShiftedSystems`)."""
+
+    def __init__(self, A, sh: ShiftedSystems, degree: int, coef: np.ndarray, betas: np.ndarray, pis: np.ndarray):
+        self.A, self.seed, self.degree, self.coef, self.pis = A, sh.seed, degree, coef, pis
+        sh.delta = np.ascontiguousarray(betas)
+
+    @classmethod
+    def fitting(cls, A, sh: ShiftedSystems, degree: int, rtol: float) -> SeedPolynomial | None:
+        """The preconditioner of the highest degree up to ``degree`` whose monomial form is exact enough
+        (rounding of Horner's scheme on the spectrum, ε Σ|p_j| hi^{j+1}, at most ``rtol``: it is that of
+        the products CG iterates with) and whose coefficients, β_δ and p_δ are finite and p's non-zero
+        (they scale as hi^{−j−1} and δ^{d+1}); None (no preconditioner) where none is."""
+        start = sh.B[int(np.argmax(sh.rho))]
+        hi = spectrum_upper_estimate(A, sh.seed, start)
+        if not (hi > 0 and np.isfinite(hi)):
+            raise ParameterError(f"A + {sh.seed:g} I is not positive definite (largest Ritz value {hi:g})")
+        eps = np.finfo(np.float64).eps
+        with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+            for d in range(degree, 0, -1):                  # (over the degrees)
+                coef = chebyshev_residual_polynomial(d, LOWER_FRACTION * hi, hi)
+                rounding = eps * float(np.sum(np.abs(coef) * hi ** np.arange(1, d + 2)))
+                betas, pis = shifted_polynomials(coef, sh.delta)
+                if (rounding <= rtol and np.all(coef != 0) and np.isfinite(betas).all()
+                        and np.isfinite(pis).all()):
+                    return cls(A, sh, d, coef, betas, pis)
+        return None
+
+    def recover(self, Y: np.ndarray, pis: np.ndarray) -> np.ndarray:
+        """The solutions ``Σ_i pis[:, i] A₀^i Y`` of the rows of ``Y`` (k, n) (row s by its own p_δ)."""
+        P = accel.kernels("linalg", Y.shape[1]).shifted_powers(self.A, self.seed, np.ascontiguousarray(Y.T),
+                                                              self.degree)
+        X = pis[:, :1] * Y
+        for i in range(1, self.degree + 1):
+            X += pis[:, i:i + 1] * P[i].T
+        return X
+
+    def extend(self, lefts: list, Ws: list, pis: np.ndarray, spare: np.ndarray | None = None,
+               post: tuple | None = None) -> None:
+        """The low-rank factors of the solutions from those of the y's, in place for each column j with
+        factors (``lefts[j]`` (k, r), ``Ws[j]`` a 1-tuple of (n, r) vertex-major; None: skipped):
+        ``[pis[:, 0] left, …, pis[:, d] left]`` and the pieces ``(W, A₀ W, …, A₀^d W)`` transformed by
+        ``post`` = (scale, take) (the linalg kernel family's ``shifted_powers``), written into
+        ``spare`` (a float64 buffer no longer needed, such as the seed's block of residuals, whose
+        pages are in memory already) while it lasts."""
+        scale, take = post if post is not None else (None, None)
+        flat = np.zeros(0) if spare is None else spare.reshape(-1)
+        o = 0
+        for j in range(len(Ws)):
+            if Ws[j] is None:
+                continue
+            (W,) = Ws[j]
+            n, r = W.shape
+            mem = []
+            for _ in range(self.degree + 2):
+                if o + n * r <= flat.size:
+                    mem.append(flat[o:o + n * r].reshape(n, r))
+                    o += n * r
+            kern = accel.kernels("linalg", n)
+            Ws[j] = tuple(kern.shifted_powers(self.A, self.seed, W, self.degree, mem, take, scale))
+            lefts[j] = np.ascontiguousarray(np.concatenate([pis[:, i:i + 1] * lefts[j]
+                                                            for i in range(self.degree + 1)], axis=1))

@@ -1,0 +1,207 @@
+"""Multi-shift CG (linalg.multishift) on hostile inputs, compiled kernels forced and off: every solution
+reported converged meets its true residual (10 × rtol ‖b‖, checked here by sparse products), a column
+whose seed breaks down is reported unconverged, bad arguments raise ParameterError naming them, and the
+polynomial preconditioner neither overflows nor loses the tolerance to rounding at any scale or degree."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from shapeflow import accel
+from shapeflow.errors import ParameterError
+from shapeflow.linalg.multishift import multishift_cg
+
+
+def grid_laplacian(m: int) -> sp.csr_matrix:
+    """The 5-point Laplacian of an m × m grid with Dirichlet rows: SPD, eigenvalues
+    4 − 2cos(πi/(m+1)) − 2cos(πj/(m+1)), the smallest 4 − 4cos(π/(m+1))."""
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(m, m))
+    eye = sp.eye(m)
+    A = (sp.kron(T, eye) + sp.kron(eye, T)).tocsr()
+    A.indices = A.indices.astype(np.int32)
+    A.indptr = A.indptr.astype(np.int32)
+    return A
+
+
+def lam_min(m: int) -> float:
+    return 4.0 - 4.0 * np.cos(np.pi / (m + 1))
+
+
+def claimed_residuals_hold(A, B, shifts, res, rtol):
+    """Every (shift, column) reported converged meets ‖b − (A + s)x‖ ≤ 10 rtol ‖b‖; all values finite."""
+    assert np.isfinite(res.X).all()
+    for i, s in enumerate(shifts):
+        for j in range(B.shape[0]):
+            if res.converged[i, j]:
+                x = res.X[j, i]
+                r = np.linalg.norm(B[j] - A @ x - s * x)
+                assert r <= 10 * rtol * np.linalg.norm(B[j]), (i, s, j, r)
+
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+@pytest.mark.parametrize("degree", [0, 2])
+def test_hundreds_of_shifts_whose_recurrences_vanish(kernels, degree):
+    # far-apart shifts: ζ of the largest underflows to 0, and the next ζ is 0 / 0 (NaN in NumPy: that
+    # shift stops updating); the compiled seed must do the same, not raise ZeroDivisionError
+    A = grid_laplacian(30)
+    B = np.random.default_rng(1).standard_normal((3, A.shape[0]))
+    shifts = np.geomspace(1e-3, 1e3, 500)
+    with accel.use(kernels=kernels):
+        res = multishift_cg(A, B, shifts, rtol=1e-8, degree=degree)
+    assert res.converged.all()
+    claimed_residuals_hold(A, B, shifts, res, 1e-8)
+
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+@pytest.mark.parametrize("degree", [0, 1, 3])
+def test_a_seed_that_breaks_down_is_not_converged(kernels, degree):
+    # A − I is indefinite (λ_min(A) ≈ 0.044): CG on it meets pᵀAp ≤ 0 and stops without meeting rtol
+    m = 20
+    A = grid_laplacian(m)
+    B = np.random.default_rng(2).standard_normal((3, A.shape[0]))
+    shifts = np.r_[-1.0, 0.0, np.geomspace(0.01, 10, 8)]
+    with accel.use(kernels=kernels):
+        res = multishift_cg(A, B, shifts, rtol=1e-8, degree=degree)
+    assert not res.converged[0].any()
+    assert (res.iterations[~res.converged] == -1).all()
+    claimed_residuals_hold(A, B, shifts, res, 1e-8)
+
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+def test_a_singular_seed_is_not_converged(kernels):
+    A = sp.csr_matrix((5, 5))                   # the zero matrix: A + 0 I is singular
+    B = np.ones((1, 5))
+    with accel.use(kernels=kernels):
+        res = multishift_cg(A, B, [0.0, 2.0], rtol=1e-8)
+    assert not res.converged.any()
+
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+def test_bad_arguments_raise_parameter_errors_naming_them(kernels):
+    A = grid_laplacian(20)
+    n = A.shape[0]
+    B = np.random.default_rng(3).standard_normal((3, n))
+    nan_b = B.copy()
+    nan_b[1, 7] = np.nan
+    inf_b = B.copy()
+    inf_b[0, 0] = np.inf
+    cases = [
+        ("A", dict(B=B[:, :-5])),               # A larger than B's columns (the compiled seed would run off them)
+        ("A", dict(A=grid_laplacian(19))),      # A smaller
+        ("B", dict(B=nan_b)),
+        ("B", dict(B=inf_b)),
+        ("maxiter", dict(maxiter=-3)),
+        ("maxiter", dict(maxiter=2.5)),
+        ("rtol", dict(rtol=0.0)),
+        ("rtol", dict(rtol=-0.5)),
+        ("rtol", dict(rtol=np.nan)),
+        ("rtol", dict(rtol=1.0)),
+        ("degree", dict(degree=None)),
+        ("degree", dict(degree=np.nan)),
+        ("degree", dict(degree=True)),
+        ("degree", dict(degree=-1)),
+    ]
+    for name, kw in cases:
+        args = dict(A=A, B=B, shifts=np.geomspace(0.01, 1, 5)) | kw
+        with accel.use(kernels=kernels), pytest.raises(ParameterError, match=name):
+            multishift_cg(args.pop("A"), args.pop("B"), args.pop("shifts"), **args)
+
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+@pytest.mark.parametrize("degree", [0, 2])
+def test_more_than_three_columns(kernels, degree):
+    A = grid_laplacian(20)
+    B = np.random.default_rng(4).standard_normal((5, A.shape[0]))
+    shifts = np.geomspace(0.01, 10, 12)
+    with accel.use(kernels=kernels):
+        res = multishift_cg(A, B, shifts, rtol=1e-8, degree=degree)
+    assert res.converged.all() and res.X.shape == (5, 12, A.shape[0])
+    claimed_residuals_hold(A, B, shifts, res, 1e-8)
+
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+@pytest.mark.parametrize("scale", [1e-200, 1e-100, 1e100, 1e200])
+def test_polynomial_at_any_scale(kernels, scale):
+    # the monomial coefficients of p scale as hi^(−j−1): at 1e±200 they leave double precision (the
+    # Lanczos estimate's squares too), and the solve goes on without the polynomial
+    m = 20
+    A = grid_laplacian(m) * scale
+    B = np.random.default_rng(5).standard_normal((3, A.shape[0]))
+    shifts = np.geomspace(0.01, 10, 12) * scale
+    with accel.use(kernels=kernels):
+        res = multishift_cg(A, B, shifts, rtol=1e-8, degree=2)
+    assert res.converged.all()
+    claimed_residuals_hold(A, B, shifts, res, 1e-8)
+
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+def test_polynomial_with_a_huge_shift(kernels):
+    # β_δ = δ p(−δ) grows as δ^(d+1): 1e300³ overflows
+    A = grid_laplacian(20)
+    B = np.random.default_rng(6).standard_normal((3, A.shape[0]))
+    shifts = np.array([1e-9, 1.0, 1e6, 1e12, 1e300])
+    with accel.use(kernels=kernels):
+        res = multishift_cg(A, B, shifts, rtol=1e-8, degree=2)
+    assert res.converged.all()
+    claimed_residuals_hold(A, B, shifts, res, 1e-8)
+
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+@pytest.mark.parametrize("degree", [16, 24, 40])
+def test_high_degrees_keep_the_tolerance(kernels, degree):
+    # Horner's scheme on the monomial form amplifies rounding by Σ|p_j| hi^(j+1) (~4e11 at degree 16
+    # with lo = hi/100): beyond rtol / ε the products are too inexact for the tolerance
+    A = grid_laplacian(20)
+    B = np.random.default_rng(7).standard_normal((3, A.shape[0]))
+    shifts = np.geomspace(0.01, 10, 12)
+    with accel.use(kernels=kernels):
+        res = multishift_cg(A, B, shifts, rtol=1e-8, degree=degree)
+    assert res.converged.all() and 1 <= res.degree < degree
+    claimed_residuals_hold(A, B, shifts, res, 1e-8)
+
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+@pytest.mark.parametrize("degree", [0, 2])
+@pytest.mark.parametrize("factors", [False, True])
+def test_post_takes_any_rows(kernels, degree, factors):
+    # take a subset, repeats and negative indices (not a permutation): the rows (scale · x)[take], as
+    # NumPy forms them from the solutions collected in X
+    A = grid_laplacian(30)
+    n = A.shape[0]
+    rng = np.random.default_rng(8)
+    B = rng.standard_normal((3, n))
+    shifts = np.geomspace(0.01, 10, 6)
+    scale = rng.uniform(0.5, 2.0, n)
+    with accel.use(kernels=kernels):
+        ref = multishift_cg(A, B, shifts, rtol=1e-10, degree=degree)
+        for take in (np.arange(0, n, 3), rng.integers(-n, n, 2 * n), np.zeros(0, np.int64)):
+            got = {}
+
+            class Receiver:
+                def __call__(self, idx, rows):
+                    for q, i in enumerate(idx):
+                        got[int(i)] = rows[:, q].copy()
+
+            if factors:
+                def whole(self, lefts, Ws):
+                    for i in range(shifts.size):
+                        got[i] = np.stack([lefts[j][i] @ np.concatenate(Ws[j], axis=1).T for j in range(3)])
+                Receiver.factors = whole
+            multishift_cg(A, B, shifts, rtol=1e-10, degree=degree, emit=Receiver(), post=(scale, take))
+            whole_x = multishift_cg(A, B, shifts, rtol=1e-10, degree=degree, post=(scale, take)).X
+            want = (ref.X * scale)[:, :, take]
+            assert sorted(got) == list(range(shifts.size)) and whole_x.shape == want.shape
+            for i in range(shifts.size):
+                assert np.allclose(got[i], want[:, i], rtol=1e-9, atol=1e-9 * np.abs(want).max(initial=1.0))
+                assert np.allclose(whole_x[:, i], want[:, i], rtol=1e-9, atol=1e-9 * np.abs(want).max(initial=1.0))
+
+
+def test_bad_post_raises_parameter_errors():
+    A = grid_laplacian(10)
+    B = np.ones((1, A.shape[0]))
+    for post in ((np.ones(7), None), (np.full(100, np.nan), None), (None, np.array([0, 100])),
+                 (None, np.array([0.5, 1.0])), (None, np.ones((2, 2), int))):
+        with pytest.raises(ParameterError, match="post"):
+            multishift_cg(A, B, [0.1, 1.0], post=post)
