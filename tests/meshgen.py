@@ -1,10 +1,23 @@
-"""Small analytic meshes for tests (independent of shapeflow's own code)."""
+"""Small analytic meshes for tests (independent of shapeflow's own code), and the grid Laplacian that
+the linear-algebra tests solve with."""
 
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 import shapeflow as sf
+
+
+def grid_laplacian(m: int) -> sp.csr_matrix:
+    """The 5-point Laplacian of an m × m grid with Dirichlet rows (int32 CSR, as the flow's systems): SPD,
+    eigenvalues 4 − 2cos(πi/(m+1)) − 2cos(πj/(m+1)), the smallest 4 − 4cos(π/(m+1)), condition ~m²."""
+    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(m, m))
+    eye = sp.eye(m)
+    A = (sp.kron(T, eye) + sp.kron(eye, T)).tocsr()
+    A.indices = A.indices.astype(np.int32)
+    A.indptr = A.indptr.astype(np.int32)
+    return A
 
 
 def grid(nx: int, ny: int | None = None, *, jitter: float = 0.0, seed: int = 0, mix: float = 0.0,

@@ -8,20 +8,10 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as sla
+from meshgen import grid_laplacian
 
 from shapeflow import accel
 from shapeflow.linalg.multishift import multishift_cg, shifted_residuals
-
-
-def grid_laplacian(m: int) -> sp.csr_matrix:
-    """The 5-point Laplacian of an m × m grid with Dirichlet rows (SPD, condition ~m²)."""
-    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(m, m))
-    eye = sp.eye(m)
-    A = (sp.kron(T, eye) + sp.kron(eye, T)).tocsr()
-    A.indices = A.indices.astype(np.int32)
-    A.indptr = A.indptr.astype(np.int32)
-    return A
-
 
 #: many shifts out of order (the low-rank fold applies), a repeated one, the hardest not first
 SHIFTS = np.random.default_rng(7).permutation(np.r_[np.geomspace(0.004, 4.0, 40), 0.004])

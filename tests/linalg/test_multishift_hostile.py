@@ -8,21 +8,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from meshgen import grid_laplacian
 
 from shapeflow import accel
 from shapeflow.errors import ParameterError
 from shapeflow.linalg.multishift import multishift_cg
-
-
-def grid_laplacian(m: int) -> sp.csr_matrix:
-    """The 5-point Laplacian of an m × m grid with Dirichlet rows: SPD, eigenvalues
-    4 − 2cos(πi/(m+1)) − 2cos(πj/(m+1)), the smallest 4 − 4cos(π/(m+1))."""
-    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(m, m))
-    eye = sp.eye(m)
-    A = (sp.kron(T, eye) + sp.kron(eye, T)).tocsr()
-    A.indices = A.indices.astype(np.int32)
-    A.indptr = A.indptr.astype(np.int32)
-    return A
 
 
 def lam_min(m: int) -> float:
@@ -40,18 +30,25 @@ def claimed_residuals_hold(A, B, shifts, res, rtol):
                 assert r <= 10 * rtol * np.linalg.norm(B[j]), (i, s, j, r)
 
 
+def solved(A, columns: int, seed: int, shifts, kernels: str, **kw):
+    """multishift_cg on ``columns`` random right-hand sides (rtol 1e-8) with the kernels given: its result,
+    every solution it reports converged checked by :func:`claimed_residuals_hold`."""
+    B = np.random.default_rng(seed).standard_normal((columns, A.shape[0]))
+    with accel.use(kernels=kernels):
+        res = multishift_cg(A, B, shifts, rtol=1e-8, **kw)
+    claimed_residuals_hold(A, B, shifts, res, 1e-8)
+    return res
+
+
 @pytest.mark.parametrize("kernels", ["off", "force"])
 @pytest.mark.parametrize("degree", [0, 2])
 def test_hundreds_of_shifts_whose_recurrences_vanish(kernels, degree):
     # far-apart shifts: ζ of the largest underflows to 0, and the next ζ is 0 / 0 (NaN in NumPy: that
     # shift stops updating); the compiled seed must do the same, not raise ZeroDivisionError
     A = grid_laplacian(30)
-    B = np.random.default_rng(1).standard_normal((3, A.shape[0]))
     shifts = np.geomspace(1e-3, 1e3, 500)
-    with accel.use(kernels=kernels):
-        res = multishift_cg(A, B, shifts, rtol=1e-8, degree=degree)
+    res = solved(A, 3, 1, shifts, kernels, degree=degree)
     assert res.converged.all()
-    claimed_residuals_hold(A, B, shifts, res, 1e-8)
 
 
 @pytest.mark.parametrize("kernels", ["off", "force"])
@@ -60,13 +57,10 @@ def test_a_seed_that_breaks_down_is_not_converged(kernels, degree):
     # A − I is indefinite (λ_min(A) ≈ 0.044): CG on it meets pᵀAp ≤ 0 and stops without meeting rtol
     m = 20
     A = grid_laplacian(m)
-    B = np.random.default_rng(2).standard_normal((3, A.shape[0]))
     shifts = np.r_[-1.0, 0.0, np.geomspace(0.01, 10, 8)]
-    with accel.use(kernels=kernels):
-        res = multishift_cg(A, B, shifts, rtol=1e-8, degree=degree)
+    res = solved(A, 3, 2, shifts, kernels, degree=degree)
     assert not res.converged[0].any()
     assert (res.iterations[~res.converged] == -1).all()
-    claimed_residuals_hold(A, B, shifts, res, 1e-8)
 
 
 @pytest.mark.parametrize("kernels", ["off", "force"])
@@ -113,12 +107,9 @@ def test_bad_arguments_raise_parameter_errors_naming_them(kernels):
 @pytest.mark.parametrize("degree", [0, 2])
 def test_more_than_three_columns(kernels, degree):
     A = grid_laplacian(20)
-    B = np.random.default_rng(4).standard_normal((5, A.shape[0]))
     shifts = np.geomspace(0.01, 10, 12)
-    with accel.use(kernels=kernels):
-        res = multishift_cg(A, B, shifts, rtol=1e-8, degree=degree)
+    res = solved(A, 5, 4, shifts, kernels, degree=degree)
     assert res.converged.all() and res.X.shape == (5, 12, A.shape[0])
-    claimed_residuals_hold(A, B, shifts, res, 1e-8)
 
 
 @pytest.mark.parametrize("kernels", ["off", "force"])
@@ -128,24 +119,18 @@ def test_polynomial_at_any_scale(kernels, scale):
     # Lanczos estimate's squares too), and the solve goes on without the polynomial
     m = 20
     A = grid_laplacian(m) * scale
-    B = np.random.default_rng(5).standard_normal((3, A.shape[0]))
     shifts = np.geomspace(0.01, 10, 12) * scale
-    with accel.use(kernels=kernels):
-        res = multishift_cg(A, B, shifts, rtol=1e-8, degree=2)
+    res = solved(A, 3, 5, shifts, kernels, degree=2)
     assert res.converged.all()
-    claimed_residuals_hold(A, B, shifts, res, 1e-8)
 
 
 @pytest.mark.parametrize("kernels", ["off", "force"])
 def test_polynomial_with_a_huge_shift(kernels):
     # β_δ = δ p(−δ) grows as δ^(d+1): 1e300³ overflows
     A = grid_laplacian(20)
-    B = np.random.default_rng(6).standard_normal((3, A.shape[0]))
     shifts = np.array([1e-9, 1.0, 1e6, 1e12, 1e300])
-    with accel.use(kernels=kernels):
-        res = multishift_cg(A, B, shifts, rtol=1e-8, degree=2)
+    res = solved(A, 3, 6, shifts, kernels, degree=2)
     assert res.converged.all()
-    claimed_residuals_hold(A, B, shifts, res, 1e-8)
 
 
 @pytest.mark.parametrize("kernels", ["off", "force"])
@@ -154,12 +139,9 @@ def test_high_degrees_keep_the_tolerance(kernels, degree):
     # Horner's scheme on the monomial form amplifies rounding by Σ|p_j| hi^(j+1) (~4e11 at degree 16
     # with lo = hi/100): beyond rtol / ε the products are too inexact for the tolerance
     A = grid_laplacian(20)
-    B = np.random.default_rng(7).standard_normal((3, A.shape[0]))
     shifts = np.geomspace(0.01, 10, 12)
-    with accel.use(kernels=kernels):
-        res = multishift_cg(A, B, shifts, rtol=1e-8, degree=degree)
+    res = solved(A, 3, 7, shifts, kernels, degree=degree)
     assert res.converged.all() and 1 <= res.degree < degree
-    claimed_residuals_hold(A, B, shifts, res, 1e-8)
 
 
 @pytest.mark.parametrize("kernels", ["off", "force"])

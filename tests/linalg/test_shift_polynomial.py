@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import scipy.sparse as sp
+from meshgen import grid_laplacian
 
 from shapeflow import accel
 from shapeflow.linalg.shift_polynomial import (
@@ -79,16 +80,8 @@ def test_parameters_are_checked():
         spectrum_upper_estimate(sp.eye(5, format="csr"), 0.0, np.zeros(5))
 
 
-def grid(m):
-    T = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(m, m))
-    A = (sp.kron(T, sp.eye(m)) + sp.kron(sp.eye(m), T)).tocsr()
-    A.indices = A.indices.astype(np.int32)
-    A.indptr = A.indptr.astype(np.int32)
-    return A
-
-
 def test_spectrum_estimate_is_near_the_largest_eigenvalue_from_above():
-    A = grid(30)
+    A = grid_laplacian(30)
     rng = np.random.default_rng(1)
     lmax = np.linalg.eigvalsh(A.toarray())[-1] + 0.5
     est = spectrum_upper_estimate(A, 0.5, rng.normal(size=A.shape[0]))
@@ -104,7 +97,7 @@ def test_shifted_powers_are_repeated_products(kernels, degree):
     """(scale · [Y, A₀Y, …])[take] against SciPy's products, in the given memory or not, with rows taken
     by a permutation (the compiled kernel scatters them), by an index that is not one (the reference
     gathers) and as they are; the input is left as it was."""
-    A = grid(40)
+    A = grid_laplacian(40)
     n = A.shape[0]
     rng = np.random.default_rng(3)
     Y = rng.normal(size=(n, 7))

@@ -130,9 +130,7 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
     ``[π_0 L, …, π_d L]`` with p_δ's coefficients π: the solutions' factors, of rank (d + 1) r.
 
     """
-    if isinstance(degree, bool) or not isinstance(degree, (int, np.integer, float)) or not (
-            degree >= 0 and int(degree) == degree):
-        raise ParameterError(f"degree must be a non-negative integer, got {degree!r}")
+    degree = params.integer("degree", degree)
     rtol = params.rtol(rtol)
     sh = ShiftedSystems(B, shifts, rtol, maxiter)
     shape = getattr(A, "shape", None)
@@ -141,7 +139,7 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
     post = check_post(post, sh.n)
     if sh.result is not None:
         return sh.result
-    poly = SeedPolynomial.fitting(A, sh, int(degree), rtol) if degree else None
+    poly = SeedPolynomial.fitting(A, sh, degree, rtol) if degree else None
     seed_cg = accel.kernels("linalg", sh.n).multishift_seed(A, sh.B, sh.seed, sh.block_slots(block_bytes),
                                                             None if poly is None else poly.coef)
     return sh.solve(seed_cg, rtol if low_rank else None, progress, emit, post, poly)
@@ -175,14 +173,13 @@ class ShiftedSystems:
             raise ParameterError("shifts must be finite")
         if not np.all(np.isfinite(B)):
             raise ParameterError(f"B must be finite (column {int(np.argmin(np.isfinite(B).all(axis=1)))} is not)")
-        if maxiter is not None and (isinstance(maxiter, bool) or int(maxiter) != maxiter or maxiter < 0):
-            raise ParameterError(f"maxiter must be a non-negative integer or None, got {maxiter!r}")
+        maxiter = None if maxiter is None else params.integer("maxiter", maxiter)
         self.order = np.argsort(shifts, kind="stable")      # hardest (smallest shift) first
         self.inv = np.argsort(self.order)
         self.shifts = shifts[self.order]
         self.seed = float(self.shifts[0]) if k else 0.0
         self.delta = np.ascontiguousarray(self.shifts - self.seed)   # (k,) >= 0
-        self.maxiter = max(200, 10 * int(np.sqrt(n)) + 100) if maxiter is None else int(maxiter)
+        self.maxiter = max(200, 10 * int(np.sqrt(n)) + 100) if maxiter is None else maxiter
         self.rho = np.einsum("ij,ij->i", B, B)                # (c,)
         self.tol2 = rtol * rtol * self.rho
         self.active = np.broadcast_to(self.rho > self.tol2, (k, c)).copy()  # (shift, column) not yet within rtol
