@@ -168,3 +168,25 @@ def test_shifted_residuals_are_the_dense_ones(problem):
     assert np.allclose(got_norm, ynorm, rtol=1e-14)
     rel = res / np.linalg.norm(B, axis=1)
     assert (rel[3] > 1e-7).all() and (np.delete(rel, 3, axis=0) < 1e-12).all()
+
+
+@pytest.mark.skipif(not accel.numba_available(), reason="the compiled kernels need numba")
+@pytest.mark.parametrize("degree", [0, 2])
+def test_compiled_seed_gives_the_same_bits_on_any_number_of_threads(degree):
+    """The seed's passes share the rows out between threads by blocks whose sums are added in block
+    order: one thread and two give the same iterations and the same solutions, bit for bit (10,000
+    unknowns: three blocks, so two threads do split the rows)."""
+    A = grid_laplacian(100)
+    B = np.random.default_rng(4).standard_normal((3, A.shape[0]))
+    runs = {}
+    for threads in (1, 2):
+        with accel.use(kernels="force", threads=threads):
+            runs[threads] = accel.heavy(multishift_cg)(A, B, SHIFTS, rtol=1e-8, degree=degree)   # (heavy: threads)
+    one, two = runs[1], runs[2]
+    assert one.krylov_iterations == two.krylov_iterations
+    assert np.array_equal(one.iterations, two.iterations)
+    assert np.array_equal(one.X, two.X)
+    with accel.use(kernels="off"):
+        ref = multishift_cg(A, B, SHIFTS, rtol=1e-8, degree=degree)
+    assert one.krylov_iterations == ref.krylov_iterations
+    assert np.abs(one.X - ref.X).max() <= 1e-11 * np.abs(ref.X).max()

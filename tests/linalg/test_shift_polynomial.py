@@ -123,3 +123,22 @@ def test_shifted_powers_are_repeated_products(kernels, degree):
                         assert np.allclose(g, w, rtol=1e-13, atol=1e-13 * np.abs(w).max())
                 assert got[1] is outs[1] and got[0] is outs[0]
                 assert np.array_equal(Y, Y0)
+
+
+@pytest.mark.skipif(not accel.numba_available(), reason="the compiled kernels need numba")
+def test_shifted_powers_give_the_same_bits_on_any_number_of_threads():
+    """The compiled powers share the rows out between threads (10,000 rows: three blocks); each row is
+    computed alone, so one thread and two give the same bits."""
+    A = grid_laplacian(100)
+    n = A.shape[0]
+    rng = np.random.default_rng(5)
+    Y = rng.normal(size=(n, 16))
+    perm = rng.permutation(n)
+    scale = rng.uniform(0.5, 2.0, n)
+    got = {}
+    for threads in (1, 2):
+        with accel.use(kernels="force", threads=threads):
+            powers = accel.heavy(accel.kernels("linalg", n).shifted_powers)      # (heavy: the threads applied)
+            got[threads] = powers(A, 0.3, Y, 2, None, perm, scale)
+    for one, two in zip(got[1], got[2]):
+        assert np.array_equal(one, two)

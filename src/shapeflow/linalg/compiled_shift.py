@@ -10,6 +10,12 @@ compares the two.  Up to three columns, stored (n, 3) as the flow's CG does (an 
 zero and never iterates).  An iteration is three passes over the rows (the product with its dots,
 the residual update with its dots and its copy into the block, the direction update) and
 O(shifts × block) scalar work; the block's GEMMs stay in NumPy (BLAS).
+
+Each pass over the rows uses the call's threads (``accel`` ``threads``): the rows are shared out by
+blocks, whose sums are added in block order, so the result has the same bits on any number of
+threads (``tests/linalg/test_multishift.py``).  Unlike the flow's symmetric Gauss–Seidel sweeps, which
+are sequential, the seed's products split: on two cores the family of figure 1 on Suzanne ×3 takes
+~0.7× its one-thread time (docs/performance.md).
 Conventions of all compiled kernels: :mod:`shapeflow.accel`.
 """
 
@@ -17,15 +23,17 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-from numba import njit
+from numba import get_num_threads, njit, prange
 
 # what :func:`run` returns: every (shift, column) finished, a block boundary passed (save the
 # state), a shift finished in every column (report progress), the iteration cap, the records are
 # full (grow them)
-from .compiled import entries_times3, int32_csr
+from ..accel import sequential
+from .compiled import BLOCK, _sum_blocks, entries_times3, int32_csr
 from .multishift import CAPPED, CHECKPOINT, DONE, GROW, PROGRESS, NumpySeed, Records, ShiftedSystems
 
-__all__ = ["CompiledSeed", "run", "replay", "shifted_powers", "rows_product", "DONE", "CAPPED", "PROGRESS_EVERY"]
+__all__ = ["CompiledSeed", "run", "replay", "shifted_powers", "rows_product", "rows_product_seq", "DONE", "CAPPED",
+           "PROGRESS_EVERY"]
 
 #: iterations between two returns to report finished shifts (each return and report costs ~0.1 ms;
 #: the last shifts are reported when the pass ends)
@@ -33,9 +41,9 @@ PROGRESS_EVERY = 8
 
 
 @njit(cache=True)
-def _product(indptr, indices, data, seed, P, AP):
-    """AP = (A + seed I) P for the three columns of P (n, 3); returns pᵀAp per column (row order)."""
-    return _apply_dot(indptr, indices, data, seed, P, P, AP)
+def _product(indptr, indices, data, seed, P, AP, nt):
+    """AP = (A + seed I) P for the three columns of P (n, 3); returns pᵀAp per column."""
+    return _apply_dot(indptr, indices, data, seed, P, P, AP, nt)
 
 
 @njit(inline="always")
@@ -45,25 +53,35 @@ def _shifted_row(indptr, indices, data, seed, X, i):
     return a0 + seed * X[i, 0], a1 + seed * X[i, 1], a2 + seed * X[i, 2]
 
 
-@njit(cache=True)
-def _combine(indptr, indices, data, seed, X, sx, P, sp_, Y):
-    """Y = sx (A + seed I) X + sp P (three columns)."""
-    n = indptr.size - 1
-    for i in range(n):
-        a0, a1, a2 = _shifted_row(indptr, indices, data, seed, X, i)
-        Y[i, 0] = sx * a0 + sp_ * P[i, 0]
-        Y[i, 1] = sx * a1 + sp_ * P[i, 1]
-        Y[i, 2] = sx * a2 + sp_ * P[i, 2]
+# The passes over the rows below share them out between ``nt`` threads as runs of whole blocks of
+# ``linalg.compiled.BLOCK`` rows; their sums are partial sums per block, added in block order, so a
+# pass gives the same bits on any number of threads.  On one thread plain loops run instead (the
+# same sums): a loop from row 0 is ~8 % faster than a thread's run of blocks on one thread (0.44 vs
+# 0.48 ms per product on Suzanne ×3), and a block's sums kept in its own loop ~40 % faster than
+# stored at its last row (the residual's update: 0.069 vs 0.107 ms).
+
+@njit(inline="always")
+def _combine_row(indptr, indices, data, seed, X, sx, P, sp_, Y, i):
+    a0, a1, a2 = _shifted_row(indptr, indices, data, seed, X, i)
+    Y[i, 0] = sx * a0 + sp_ * P[i, 0]
+    Y[i, 1] = sx * a1 + sp_ * P[i, 1]
+    Y[i, 2] = sx * a2 + sp_ * P[i, 2]
 
 
-@njit(cache=True)
-def _apply_dot(indptr, indices, data, seed, X, P, AP):
-    """AP = (A + seed I) X for the three columns of X (n, 3); returns pᵀ(AP) per column, p from P."""
-    n = indptr.size - 1
+@njit(inline="always")
+def _direction_row(P, R, b0, b1, b2, i):
+    P[i, 0] = R[i, 0] + b0 * P[i, 0]
+    P[i, 1] = R[i, 1] + b1 * P[i, 1]
+    P[i, 2] = R[i, 2] + b2 * P[i, 2]
+
+
+@njit(inline="always")
+def _apply_block(indptr, indices, data, seed, X, P, AP, part, b):
+    """Rows of block b of AP = (A + seed I) X; its partial sums of pᵀAp into part[b]."""
     s0 = 0.0
     s1 = 0.0
     s2 = 0.0
-    for i in range(n):
+    for i in range(b * BLOCK, min(indptr.size - 1, (b + 1) * BLOCK)):
         a0, a1, a2 = _shifted_row(indptr, indices, data, seed, X, i)
         AP[i, 0] = a0
         AP[i, 1] = a1
@@ -71,45 +89,18 @@ def _apply_dot(indptr, indices, data, seed, X, P, AP):
         s0 += P[i, 0] * a0
         s1 += P[i, 1] * a1
         s2 += P[i, 2] * a2
-    return s0, s1, s2
+    part[b, 0] = s0
+    part[b, 1] = s1
+    part[b, 2] = s2
 
 
-@njit(cache=True)
-def _poly_product(indptr, indices, data, seed, coef, P, AP, T, U):
-    """AP = A₀ p(A₀) P (A₀ = A + seed I, p of degree ≥ 1 with monomial coefficients ``coef``) by
-    Horner's scheme, as ``NumpySeed.poly_product``: T and U scratch (n, 3); returns pᵀAp per column."""
-    d = coef.size - 1
-    _combine(indptr, indices, data, seed, P, coef[d], P, coef[d - 1], T)
-    src = T
-    dst = U
-    for j in range(d - 2, -1, -1):
-        _combine(indptr, indices, data, seed, src, 1.0, P, coef[j], dst)
-        src, dst = dst, src
-    return _apply_dot(indptr, indices, data, seed, src, P, AP)
-
-
-@njit(cache=True)
-def _seed_product(indptr, indices, data, seed, coef, P, AP, T, U):
-    """The seed's operator applied to P: A₀ P when ``coef`` is empty, else :func:`_poly_product`."""
-    if coef.size == 0:
-        return _product(indptr, indices, data, seed, P, AP)
-    return _poly_product(indptr, indices, data, seed, coef, P, AP, T, U)
-
-
-@njit(cache=True)
-def _residual(R, AP, alpha, Rb, slot, c):
-    """R −= αAP (three columns), its first ``c`` columns copied into ``Rb[:, slot]`` when ``slot`` is
-    inside the block; returns rᵀr per column."""
-    n = R.shape[0]
-    s = np.zeros(3)
-    a0 = alpha[0]
-    a1 = alpha[1]
-    a2 = alpha[2]
-    store = slot < Rb.shape[1]
+@njit(inline="always")
+def _residual_block(R, AP, a0, a1, a2, Rb, slot, c, store, part, b):
+    """Rows of block b of R −= αAP (copied into Rb[:, slot] when ``store``); partial sums of rᵀr into part[b]."""
     s0 = 0.0
     s1 = 0.0
     s2 = 0.0
-    for i in range(n):
+    for i in range(b * BLOCK, min(R.shape[0], (b + 1) * BLOCK)):
         r0 = R[i, 0] - a0 * AP[i, 0]
         r1 = R[i, 1] - a1 * AP[i, 1]
         r2 = R[i, 2] - a2 * AP[i, 2]
@@ -125,28 +116,124 @@ def _residual(R, AP, alpha, Rb, slot, c):
                 Rb[1, slot, i] = r1
                 if c > 2:
                     Rb[2, slot, i] = r2
-    s[0] = s0
-    s[1] = s1
-    s[2] = s2
-    return s
+    part[b, 0] = s0
+    part[b, 1] = s1
+    part[b, 2] = s2
+
+
+@njit(parallel=True, cache=True)
+def _combine_par(indptr, indices, data, seed, X, sx, P, sp_, Y, nt):
+    n = indptr.size - 1
+    nb = (n + BLOCK - 1) // BLOCK
+    nt = max(1, min(nt, nb))
+    for t in prange(nt):
+        for i in range((t * nb // nt) * BLOCK, min(n, ((t + 1) * nb // nt) * BLOCK)):
+            _combine_row(indptr, indices, data, seed, X, sx, P, sp_, Y, i)
 
 
 @njit(cache=True)
-def _direction(P, R, beta):
-    """P = R + βP (three columns)."""
+def _combine(indptr, indices, data, seed, X, sx, P, sp_, Y, nt):
+    """Y = sx (A + seed I) X + sp P (three columns)."""
+    if nt > 1:
+        _combine_par(indptr, indices, data, seed, X, sx, P, sp_, Y, nt)
+        return
+    for i in range(indptr.size - 1):
+        _combine_row(indptr, indices, data, seed, X, sx, P, sp_, Y, i)
+
+
+@njit(parallel=True, cache=True)
+def _apply_dot_par(indptr, indices, data, seed, X, P, AP, part, nt):
+    nb = part.shape[0]
+    nt = max(1, min(nt, nb))
+    for t in prange(nt):
+        for b in range(t * nb // nt, (t + 1) * nb // nt):
+            _apply_block(indptr, indices, data, seed, X, P, AP, part, b)
+
+
+@njit(cache=True)
+def _apply_dot(indptr, indices, data, seed, X, P, AP, nt):
+    """AP = (A + seed I) X for the three columns of X (n, 3); returns pᵀ(AP) per column, p from P."""
+    part = np.zeros(((indptr.size - 1 + BLOCK - 1) // BLOCK, 3))
+    if nt > 1:
+        _apply_dot_par(indptr, indices, data, seed, X, P, AP, part, nt)
+    else:
+        for b in range(part.shape[0]):
+            _apply_block(indptr, indices, data, seed, X, P, AP, part, b)
+    return _sum_blocks(part)
+
+
+@njit(parallel=True, cache=True)
+def _residual_par(R, AP, alpha, Rb, slot, c, part, nt):
+    nb = part.shape[0]
+    nt = max(1, min(nt, nb))
+    store = slot < Rb.shape[1]
+    for t in prange(nt):
+        for b in range(t * nb // nt, (t + 1) * nb // nt):
+            _residual_block(R, AP, alpha[0], alpha[1], alpha[2], Rb, slot, c, store, part, b)
+
+
+@njit(cache=True)
+def _residual(R, AP, alpha, Rb, slot, c, nt):
+    """R −= αAP (three columns), its first ``c`` columns copied into ``Rb[:, slot]`` when ``slot`` is
+    inside the block; returns rᵀr per column."""
+    part = np.zeros(((R.shape[0] + BLOCK - 1) // BLOCK, 3))
+    if nt > 1:
+        _residual_par(R, AP, alpha, Rb, slot, c, part, nt)
+    else:
+        store = slot < Rb.shape[1]
+        for b in range(part.shape[0]):
+            _residual_block(R, AP, alpha[0], alpha[1], alpha[2], Rb, slot, c, store, part, b)
+    return _sum_blocks(part)
+
+
+@njit(parallel=True, cache=True)
+def _direction_par(P, R, beta, nt):
     n = P.shape[0]
+    nb = (n + BLOCK - 1) // BLOCK
+    nt = max(1, min(nt, nb))
+    for t in prange(nt):
+        for i in range((t * nb // nt) * BLOCK, min(n, ((t + 1) * nb // nt) * BLOCK)):
+            _direction_row(P, R, beta[0], beta[1], beta[2], i)
+
+
+@njit(cache=True)
+def _direction(P, R, beta, nt):
+    """P = R + βP (three columns)."""
+    if nt > 1:
+        _direction_par(P, R, beta, nt)
+        return
     b0 = beta[0]
     b1 = beta[1]
     b2 = beta[2]
-    for i in range(n):
-        P[i, 0] = R[i, 0] + b0 * P[i, 0]
-        P[i, 1] = R[i, 1] + b1 * P[i, 1]
-        P[i, 2] = R[i, 2] + b2 * P[i, 2]
+    for i in range(P.shape[0]):
+        _direction_row(P, R, b0, b1, b2, i)
+
+
+@njit(cache=True)
+def _poly_product(indptr, indices, data, seed, coef, P, AP, T, U, nt):
+    """AP = A₀ p(A₀) P (A₀ = A + seed I, p of degree ≥ 1 with monomial coefficients ``coef``) by
+    Horner's scheme, as ``NumpySeed.poly_product``: T and U scratch (n, 3); returns pᵀAp per column."""
+    d = coef.size - 1
+    _combine(indptr, indices, data, seed, P, coef[d], P, coef[d - 1], T, nt)
+    src = T
+    dst = U
+    for j in range(d - 2, -1, -1):
+        _combine(indptr, indices, data, seed, src, 1.0, P, coef[j], dst, nt)
+        src, dst = dst, src
+    return _apply_dot(indptr, indices, data, seed, src, P, AP, nt)
+
+
+@njit(cache=True)
+def _seed_product(indptr, indices, data, seed, coef, P, AP, T, U, nt):
+    """The seed's operator applied to P: A₀ P when ``coef`` is empty, else :func:`_poly_product`."""
+    if coef.size == 0:
+        return _product(indptr, indices, data, seed, P, AP, nt)
+    return _poly_product(indptr, indices, data, seed, coef, P, AP, T, U, nt)
 
 
 @njit(cache=True, error_model="numpy")     # (x / 0 is ±inf or NaN, as in NumpySeed: ζ of a finished shift)
 def run(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, delta, zeta, zeta_prev, rho, alpha_prev, beta_prev,
-        tol2, active, live, iterations, ra, rb, rz, sa, sb, srho, state, maxiter):
+        tol2, active, live, iterations, ra, rb, rz, sa, sb, srho, state, maxiter, nt):
     """The first pass of ``NumpySeed.first_pass`` until a block boundary, a finished shift, the end,
     the cap or full records (the returned code); ``state[0]`` counts the iterations, ``state[1]`` is the
     last one that returned ``PROGRESS`` (at most one every :data:`PROGRESS_EVERY` iterations).
@@ -175,11 +262,11 @@ def run(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, delta, zeta, zeta
             for j in range(c):
                 if active[s, j]:
                     cols[j] = True
-        pap = _seed_product(indptr, indices, data, seed, coef, P, AP, T, U)
+        pap = _seed_product(indptr, indices, data, seed, coef, P, AP, T, U, nt)
         for j in range(3):
             ok[j] = cols[j] and pap[j] > 0.0
             alpha[j] = rho[j] / pap[j] if ok[j] else 0.0
-        rho_new = _residual(R, AP, alpha, Rb, it, c)
+        rho_new = _residual(R, AP, alpha, Rb, it, c, nt)
         for j in range(3):
             beta[j] = rho_new[j] / rho[j] if (ok[j] and rho[j] > 0.0) else 0.0
             sa[it, j] = alpha[j]
@@ -225,7 +312,7 @@ def run(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, delta, zeta, zeta
                     running = True
         if not running:
             return DONE
-        _direction(P, R, beta)
+        _direction(P, R, beta, nt)
         if it % cap == 0:
             return CHECKPOINT
         if finished and it - state[1] >= PROGRESS_EVERY:
@@ -235,7 +322,7 @@ def run(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, delta, zeta, zeta
 
 
 @njit(cache=True)
-def replay(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, sa, sb, t0, t1):
+def replay(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, sa, sb, t0, t1, nt):
     """The residuals r_t0 … r_{t1−1} into ``Rb[:, 0 … t1−t0−1]`` from R = r_t0, P = p_t0 (the state
     saved after iteration t0) with the recorded α and β: the first pass's arithmetic, so the same bits."""
     c = Rb.shape[0]
@@ -244,9 +331,9 @@ def replay(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, sa, sb, t0, t1
         for i in range(n):
             Rb[j, 0, i] = R[i, j]
     for t in range(t0 + 1, t1):
-        _seed_product(indptr, indices, data, seed, coef, P, AP, T, U)
-        _residual(R, AP, sa[t], Rb, t - t0, c)
-        _direction(P, R, sb[t])
+        _seed_product(indptr, indices, data, seed, coef, P, AP, T, U, nt)
+        _residual(R, AP, sa[t], Rb, t - t0, c, nt)
+        _direction(P, R, sb[t], nt)
 
 
 class CompiledSeed(NumpySeed):
@@ -291,7 +378,8 @@ class CompiledSeed(NumpySeed):
         while True:
             st = run(self.indptr, self.indices, self.data, self.seed, self.coef, self.P, self.AP, self.T, self.U,
                      self.R, self.Rb, delta, zeta, zeta_prev, rho3, alpha_prev, beta_prev, tol3, active, sh.live,
-                     iterations, rec.ra, rec.rb, rec.rz, rec.sa, rec.sb, rec.srho, state, sh.maxiter)
+                     iterations, rec.ra, rec.rb, rec.rz, rec.sa, rec.sb, rec.srho, state, sh.maxiter,
+                     get_num_threads())
             done = report(done)
             if st == GROW:
                 rec.grow()
@@ -303,7 +391,7 @@ class CompiledSeed(NumpySeed):
     def replay(self, b: int, t0: int, t1: int) -> None:
         self.R, self.P = self.saved.pop(b)
         replay(self.indptr, self.indices, self.data, self.seed, self.coef, self.P, self.AP, self.T, self.U,
-               self.R, self.Rb, self.rec.sa, self.rec.sb, t0, t1)
+               self.R, self.Rb, self.rec.sa, self.rec.sb, t0, t1, get_num_threads())
         self.replayed += t1 - t0 - 1
 
 
@@ -328,10 +416,12 @@ def shifted_powers(A, seed, Y, degree, out=None, take=None, scale=None):
     res = [mem[i] for i in range(degree + 1)]
     scratch = [mem[degree + 1], np.empty(Y.shape) if degree > 2 else None]
     src = np.ascontiguousarray(Y)
+    nt = get_num_threads()
     for i in range(1, degree + 1):          # each power in the solve's order too, for the next one
         keep = scratch[(i - 1) % 2] if i < degree else res[i]      # (not stored after the last)
-        rows_product(A.indptr, A.indices, data, float(seed), src, keep, i < degree, res[i], pos, sc,
-                     res[0] if i == 1 else _NO_ROWS2)
+        (rows_product if nt > 1 else rows_product_seq)(A.indptr, A.indices, data, float(seed), src, keep,
+                                                       i < degree, res[i], pos, sc,
+                                                       res[0] if i == 1 else _NO_ROWS2, nt)
         src = keep
     return res
 
@@ -341,31 +431,39 @@ _NO_SCALE = np.zeros(0)
 _NO_ROWS2 = np.zeros((0, 1))
 
 
-@njit(cache=True)
-def rows_product(indptr, indices, data, seed, Y, Z, store, Zt, pos, sc, Yt):
+@njit(parallel=True, cache=True)
+def rows_product(indptr, indices, data, seed, Y, Z, store, Zt, pos, sc, Yt, nt):
     """For Y (n, r) C-contiguous of any width r, one pass over the matrix for all r columns: row s of
     (A + seed I) Y into row s of Z (when ``store``) and, times ``sc[s]`` (``sc`` empty: 1), into row
-    ``pos[s]`` of ``Zt``; with ``Yt`` non-empty, row s of Y times ``sc[s]`` into its row ``pos[s]``."""
+    ``pos[s]`` of ``Zt``; with ``Yt`` non-empty, row s of Y times ``sc[s]`` into its row ``pos[s]``.
+    The rows are shared out between ``nt`` threads as runs of whole blocks (no sums: the same bits
+    on any number of threads)."""
     n = indptr.size - 1
     r = Y.shape[1]
     scaled = sc.size > 0
     copy = Yt.shape[0] > 0
-    acc = np.empty(r)
-    for i in range(n):
-        for t in range(r):
-            acc[t] = seed * Y[i, t]
-        for q in range(indptr[i], indptr[i + 1]):
-            j = indices[q]
-            v = data[q]
+    nb = (n + BLOCK - 1) // BLOCK
+    nt = max(1, min(nt, nb))
+    for th in prange(nt):
+        acc = np.empty(r)
+        for i in range((th * nb // nt) * BLOCK, min(n, ((th + 1) * nb // nt) * BLOCK)):
             for t in range(r):
-                acc[t] += v * Y[j, t]
-        if store:
+                acc[t] = seed * Y[i, t]
+            for q in range(indptr[i], indptr[i + 1]):
+                j = np.uint64(indices[q])
+                v = data[q]
+                for t in range(r):
+                    acc[t] += v * Y[j, t]
+            if store:
+                for t in range(r):
+                    Z[i, t] = acc[t]
+            o = pos[i]
+            s = sc[i] if scaled else 1.0
             for t in range(r):
-                Z[i, t] = acc[t]
-        o = pos[i]
-        s = sc[i] if scaled else 1.0
-        for t in range(r):
-            Zt[o, t] = acc[t] * s
-        if copy:
-            for t in range(r):
-                Yt[o, t] = Y[i, t] * s
+                Zt[o, t] = acc[t] * s
+            if copy:
+                for t in range(r):
+                    Yt[o, t] = Y[i, t] * s
+
+
+rows_product_seq = sequential(rows_product)
