@@ -15,7 +15,7 @@ from meshgen import cube_sphere
 
 import shapeflow as sf
 from shapeflow import accel
-from shapeflow.errors import ParameterError, SolverWarning
+from shapeflow.errors import SolverWarning
 
 paths = importlib.import_module("shapeflow.flow.family_paths")
 KERNELS = ["off", "force"]
@@ -69,38 +69,6 @@ def test_member_residuals_are_the_dense_ones(kernels, cols):
             assert ynorm[q, t] == pytest.approx(np.linalg.norm(y), rel=1e-13)
 
 
-@pytest.mark.parametrize("kernels", KERNELS)
-def test_member_residuals_in_another_order_of_the_rows(kernels):
-    """With ``pos`` the matrix and the right-hand sides are in another order of the rows (vertex i is
-    their row pos[i], as in the operator's locality order) while the positions stay in the mesh's: the
-    residuals are those of the system in the mesh's order.  A ``pos`` that is not a permutation is refused."""
-    rng = np.random.default_rng(6)
-    n, k = 300, 5
-    A = _spd(n, 2)
-    cols = np.array([0, 1, 2])
-    out = rng.normal(size=(k, n, 3))
-    base = rng.normal(size=(n, 3))
-    inv_scale = rng.uniform(0.5, 2.0, n)
-    members = np.arange(k)
-    signs = np.array([1.0, -1.0, 1.0, 1.0, -1.0])
-    deltas = rng.uniform(0.0, 3.0, k)
-    R0 = rng.normal(size=(3, n))
-    perm = rng.permutation(n)                       # row r of the permuted system is vertex perm[r]
-    pos = np.argsort(perm)
-    Ap = A[perm][:, perm].tocsr()
-    Ap.indices = Ap.indices.astype(np.int32)
-    Ap.indptr = Ap.indptr.astype(np.int32)
-    with accel.use(kernels=kernels):
-        kern = accel.kernels("flow", n)
-        want = kern.member_residuals(A, R0, out, base, inv_scale, cols, members, signs, deltas)
-        got = kern.member_residuals(Ap, np.ascontiguousarray(R0[:, perm]), out, base, inv_scale, cols, members,
-                                    signs, deltas, pos)
-        with pytest.raises(ParameterError, match="pos"):
-            kern.member_residuals(Ap, R0, out, base, inv_scale, cols, members, signs, deltas, np.zeros(n, np.int64))
-    np.testing.assert_allclose(got[0], want[0], rtol=1e-12)
-    np.testing.assert_allclose(got[1], want[1], rtol=1e-13)
-
-
 @pytest.mark.skipif(not accel.numba_available(), reason="the compiled kernels need numba")
 def test_member_residuals_give_the_same_bits_on_any_number_of_threads():
     """The compiled check shares the rows out between threads by blocks whose sums are added in block
@@ -112,12 +80,11 @@ def test_member_residuals_give_the_same_bits_on_any_number_of_threads():
     base = rng.normal(size=(n, 3))
     args = (A, rng.normal(size=(3, n)), out, base, rng.uniform(0.5, 2.0, n), np.arange(3), np.arange(k),
             np.where(rng.random(k) < 0.5, -1.0, 1.0), rng.uniform(0.0, 3.0, k))
-    pos = rng.permutation(n)
     got = {}
     for threads in (1, 2):
         with accel.use(kernels="force", threads=threads):
             check = accel.heavy(accel.kernels("flow", n).member_residuals)      # (heavy: the threads applied)
-            got[threads] = check(*args, pos=pos)
+            got[threads] = check(*args)
     assert np.array_equal(got[1][0], got[2][0]) and np.array_equal(got[1][1], got[2][1])
 
 

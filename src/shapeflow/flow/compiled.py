@@ -11,7 +11,7 @@ import numpy as np
 from numba import get_num_threads, njit, prange
 
 from ..linalg.compiled import int32_csr
-from .kernels import FlowKernels, is_permutation, no_coupling
+from .kernels import FlowKernels, no_coupling
 
 
 def interior_data(nnz, pos_diag, pos_upper, pos_lower, pairs, free, c, deg, pw):
@@ -135,12 +135,11 @@ RESIDUAL_MEMBERS = 16
 ROWS = 2048
 
 
-def member_residuals(indptr, indices, data, R0, out, base, inv_scale, cols, members, signs, deltas, pos=None):
+def member_residuals(indptr, indices, data, R0, out, base, inv_scale, cols, members, signs, deltas):
     """``FlowKernels.member_residuals`` compiled: per block of :data:`RESIDUAL_MEMBERS` members, their
-    displacements in one (n, 3 × block) array (row ``pos[i]`` for vertex i: the matrix's order), then one
-    pass over the matrix for all of them.  The rows are shared out between the threads by blocks of
-    :data:`ROWS` rows, whose partial sums are added in block order (the same result on any number of
-    threads)."""
+    displacements in one (n, 3 × block) array, then one pass over the matrix for all of them.  The
+    rows are shared out between the call's threads by blocks of :data:`ROWS` rows, whose partial sums
+    are added in block order (the same result on any number of threads)."""
     c, n = cols.size, base.shape[0]
     cols3 = np.empty(3, np.int64)
     cols3[:] = cols[0]
@@ -150,7 +149,6 @@ def member_residuals(indptr, indices, data, R0, out, base, inv_scale, cols, memb
     members = np.asarray(members, np.int64)
     signs = np.asarray(signs, np.float64)
     deltas = np.asarray(deltas, np.float64)
-    pos = np.arange(n, dtype=np.int64) if pos is None else np.asarray(pos, np.int64)
     nb = (n + ROWS - 1) // ROWS
     q = min(RESIDUAL_MEMBERS, members.size)
     Y = np.empty((n, 3 * q))
@@ -161,7 +159,7 @@ def member_residuals(indptr, indices, data, R0, out, base, inv_scale, cols, memb
     for s0 in range(0, members.size, q):
         s1 = min(members.size, s0 + q)
         w = 3 * (s1 - s0)
-        _displacements(out, base, inv_scale, cols3, members[s0:s1], signs[s0:s1], Y[:, :w], pos)
+        _displacements(out, base, inv_scale, cols3, members[s0:s1], signs[s0:s1], Y[:, :w])
         _shifted_norms(indptr, indices, data, R3, deltas[s0:s1], Y[:, :w], part_r[:, :w], part_y[:, :w])
         res[s0:s1] = np.sqrt(part_r[:, :w].sum(axis=0)).reshape(s1 - s0, 3)[:, :c]
         ynorm[s0:s1] = np.sqrt(part_y[:, :w].sum(axis=0)).reshape(s1 - s0, 3)[:, :c]
@@ -169,18 +167,16 @@ def member_residuals(indptr, indices, data, R0, out, base, inv_scale, cols, memb
 
 
 @njit(parallel=True, cache=True)
-def _displacements(out, base, inv_scale, cols, members, signs, Y, pos):
-    """Y[pos[i], 3p + t] = signs[p] (out[members[p], i, cols[t]] − base[i, cols[t]]) · inv_scale[i]
-    (``pos`` a permutation: each row of Y written once)."""
-    for i in prange(Y.shape[0]):                # the vertices in order: out's rows read in sequence
+def _displacements(out, base, inv_scale, cols, members, signs, Y):
+    """Y[i, 3p + t] = signs[p] (out[members[p], i, cols[t]] − base[i, cols[t]]) · inv_scale[i]."""
+    for i in prange(Y.shape[0]):                # row i of Y written at once
         s = inv_scale[i]
-        o = pos[i]
         for p in range(members.size):
             m = members[p]
             sg = signs[p]
             for t in range(3):
                 j = cols[t]
-                Y[o, 3 * p + t] = sg * (out[m, i, j] - base[i, j]) * s
+                Y[i, 3 * p + t] = sg * (out[m, i, j] - base[i, j]) * s
 
 
 @njit(parallel=True, cache=True)
@@ -450,14 +446,13 @@ class FlowNumba(FlowKernels):
             return super().step_result(X, V, factor, flip, axes, out)
         return step_result(X, V, factor, flip, axes, out)
 
-    def member_residuals(self, As, R0, out, base, inv_scale, cols, members, signs, deltas, pos=None):
+    def member_residuals(self, As, R0, out, base, inv_scale, cols, members, signs, deltas):
         if not (getattr(As, "format", None) == "csr" and int32_csr(As) and out.dtype == base.dtype == np.float64
                 and out.ndim == 3 and out.shape[2] == 3 and base.shape[1] == 3 and out.flags.c_contiguous
-                and 1 <= cols.size <= 3 and (pos is None or is_permutation(pos, base.shape[0]))):
-            return super().member_residuals(As, R0, out, base, inv_scale, cols, members, signs, deltas, pos)
+                and 1 <= cols.size <= 3):
+            return super().member_residuals(As, R0, out, base, inv_scale, cols, members, signs, deltas)
         return member_residuals(As.indptr, As.indices, np.ascontiguousarray(As.data, dtype=np.float64), R0, out,
-                                base, np.ascontiguousarray(inv_scale, dtype=np.float64), cols, members, signs, deltas,
-                                pos)
+                                base, np.ascontiguousarray(inv_scale, dtype=np.float64), cols, members, signs, deltas)
 
     def scatter_members(self, out, base, cols, i0, rows, members, shift_of, signs):
         if not (out.dtype == rows.dtype == base.dtype == np.float64 and out.ndim == 3 and rows.ndim == 3

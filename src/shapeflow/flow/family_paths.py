@@ -224,32 +224,31 @@ class MemberSink:
 def run_shared(flow_solver: FlowSolver, operator, plan: SharedPlan, X: np.ndarray, ax: np.ndarray, add, progress):
     """The multi-shift solve of the plan's shifts, its members handed to ``add`` (:class:`MemberSink`):
     BiCG with feature curves (:mod:`~shapeflow.flow.family_features`), else CG on the system in the
-    operator's locality order.  Returns the result and the scaled system solved, ``(A, R0, pos)``: in the
-    mesh's order with ``pos`` None, else in the order where vertex i is row ``pos[i]``."""
+    operator's locality order.  Returns the result and the scaled system solved in the mesh's order,
+    ``(A, R0)``."""
     interior_sys, curve_sys, S, V = plan.interior_sys, plan.curve_sys, plan.scale, flow_solver.mesh.vertices
     deltas = plan.sigmas - plan.sigmas[0]
     if curve_sys is not None:     # curves and surface: one non-symmetric shifted system
         R0, As, AsT, _ = coupled_seed_system(interior_sys, curve_sys, S, V, X, ax)
         res = multishift_bicg(As, AsT, R0, deltas, rtol=flow_solver.rtol, maxiter=plan.maxiter, progress=progress)
         add(np.arange(plan.sigmas.size), res.X * S)
-        return res, (As, R0, None)
+        return res, (As, R0)
     R0, As, _ = seed_system(interior_sys, S, V, X, ax)
     Ap, R0p, Sp, inv = in_locality_order(operator, As, R0, S)
     res = multishift_cg(Ap, R0p, deltas, rtol=flow_solver.rtol, maxiter=plan.maxiter,
                         block_bytes=block_bytes(plan.sigmas.size, S.size), progress=progress, emit=add,
                         post=(Sp, inv), degree=SHARED_DEGREE)      # 0 off the free rows; back from the locality order
-    return res, (As, R0, None) if inv is None else (Ap, R0p, inv)
+    return res, (As, R0)
 
 
 def check_members(out: np.ndarray, base: np.ndarray, lams: np.ndarray, ax: np.ndarray, plan: SharedPlan,
                   system, members: np.ndarray, rtol: float) -> np.ndarray:
     """The listed members whose true residual misses the tolerance.
 
-    For each, the scaled system ``(σ I + M) Y = b`` of the shared solve (``system`` = ``(As, R0, pos)``
-    from :func:`run_shared`: As = σ_seed I + M and R0 = b, columns of the enabled axes, in the mesh's
-    order or, with ``pos``, in the operator's locality order, whose products gather from nearby rows) is
-    evaluated at ``Y = C_1^{1/2} Δ`` with Δ = ±(member − base) read back from ``out`` in the mesh's
-    order (the flow kernel family's ``member_residuals``).
+    For each, the scaled system ``(σ I + M) Y = b`` of the shared solve (``system`` = ``(As, R0)``
+    from :func:`run_shared`: As = σ_seed I + M and R0 = b in the mesh's order, columns of the enabled
+    axes) is evaluated at ``Y = C_1^{1/2} Δ`` with Δ = ±(member − base) read back from ``out``
+    (the flow kernel family's ``member_residuals``).
     A column passes when its residual is at most
     :data:`~shapeflow.linalg.multishift.TRUE_RESIDUAL_FACTOR` × (``rtol ‖b‖`` + what rounding the
     positions alone leaves, ε (‖|As|‖∞ + δ)(‖base/S‖ + ‖Y‖)); a non-finite one fails.
@@ -257,7 +256,7 @@ def check_members(out: np.ndarray, base: np.ndarray, lams: np.ndarray, ax: np.nd
     cols = np.flatnonzero(ax)
     if members.size == 0 or cols.size == 0:
         return members[:0]
-    As, R0, pos = system
+    As, R0 = system
     inv_scale = 1.0 / plan.scale
     deltas = (plan.sigmas - plan.sigmas[0])[plan.member_shift[members]]
     signs = np.where(lams[members] >= 0, 1.0, -1.0)
@@ -268,7 +267,7 @@ def check_members(out: np.ndarray, base: np.ndarray, lams: np.ndarray, ax: np.nd
     tol = TRUE_RESIDUAL_FACTOR * rtol * np.sqrt(np.einsum("ji,ji->j", R0, R0))          # (c,)
     scaled_base = base[:, cols] * inv_scale[:, None]
     base_size = np.sqrt(np.einsum("ij,ij->j", scaled_base, scaled_base))
-    res, ynorm = kern.member_residuals(As, R0, out, base, inv_scale, cols, members, signs, deltas, pos)
+    res, ynorm = kern.member_residuals(As, R0, out, base, inv_scale, cols, members, signs, deltas)
     floor = TRUE_RESIDUAL_FACTOR * eps * (norm_a + deltas)[:, None] * (base_size + ynorm)
     return members[~(res <= tol + floor).all(axis=1)]
 

@@ -10,7 +10,6 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..accel import Family
-from ..errors import ParameterError
 
 __all__ = ["FlowKernels", "MEMBER_BLOCK", "ADD_ROWS"]
 
@@ -105,24 +104,19 @@ class FlowKernels(Family):
         return n_bad
 
     def member_residuals(self, As, R0: np.ndarray, out: np.ndarray, base: np.ndarray, inv_scale: np.ndarray,
-                         cols: np.ndarray, members: np.ndarray, signs: np.ndarray, deltas: np.ndarray,
-                         pos: np.ndarray | None = None):
+                         cols: np.ndarray, members: np.ndarray, signs: np.ndarray, deltas: np.ndarray):
         """True residuals of a family's members in the shared solve's scaled system: ``(res, ynorm)``,
         both (members, c) with c = ``cols.size``.
 
         For member ``members[q]`` and column t: y = ``signs[q]`` (out[m][:, cols[t]] − base[:, cols[t]]) ·
         ``inv_scale`` (its displacement Δ read back from the positions, times C_1^{1/2}), ``ynorm`` = ‖y‖ and
         ``res`` = ‖(As + ``deltas[q]`` I) y − R0[t]‖; ``As`` (n, n) CSR and ``R0`` (c, n) in the mesh's order,
-        or, with ``pos`` (a permutation: vertex i is their row ``pos[i]``), in that order (such as the
-        operator's locality order, whose products gather from nearby rows); ``out``, ``base`` (n, 3) and
-        ``inv_scale`` in the mesh's order.  A non-finite position gives a non-finite residual.  Blocks of
+        ``base`` (n, 3).  A non-finite position gives a non-finite residual.  Blocks of
         :data:`MEMBER_BLOCK` members: one sparse product per block (``shifted_residuals``).
         """
         from ..linalg.multishift import shifted_residuals
 
         n, c = base.shape[0], cols.size
-        if pos is not None and not is_permutation(pos, n):
-            raise ParameterError(f"pos must be a permutation of the {n} rows")
         base_c = np.ascontiguousarray(base[:, cols])
         inv = np.repeat(inv_scale, c).reshape(n, c)
         res = np.empty((members.size, c))
@@ -138,10 +132,6 @@ class FlowKernels(Family):
             # (n, q, c) for one sparse product over all members: the (n, c) rows moved as single items
             Y = np.ascontiguousarray(D.view(np.dtype((np.void, 8 * c))).reshape(ms.size, n).T)
             Y = Y.view(np.float64).reshape(n, ms.size, c)
-            if pos is not None:
-                Yp = np.empty_like(Y)       # (pos a permutation: every row written)
-                Yp[pos] = Y
-                Y = Yp
             res[s0:s0 + ms.size], ynorm[s0:s0 + ms.size] = shifted_residuals(As, R0, deltas[s0:s0 + ms.size], Y)
         return res, ynorm
 
@@ -219,11 +209,3 @@ class FlowKernels(Family):
             d = A[s:s + chunk] - B[s:s + chunk]
             best = max(best, float(np.einsum("ij,ij->i", d, d).max()))
         return float(np.sqrt(best))
-
-
-def is_permutation(pos, n: int) -> bool:
-    """Whether ``pos`` is a 1-D integer array holding each of 0 … n − 1 once."""
-    pos = np.asarray(pos)
-    if pos.shape != (n,) or pos.dtype.kind not in "iu":
-        return False
-    return n == 0 or bool(pos.min() >= 0 and pos.max() < n and np.bincount(pos, minlength=n).max() == 1)
