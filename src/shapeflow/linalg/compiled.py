@@ -37,7 +37,7 @@ BLOCK = 4096
 
 
 @njit(cache=True)
-def _sum_blocks(part):
+def sum_blocks(part):
     out = np.zeros(3)
     for b in range(part.shape[0]):
         out[0] += part[b, 0]
@@ -91,7 +91,7 @@ def _spmm_dot(indptr, indices, data, P, AP, nt):
             s1 += a1 * P[i, 1]
             s2 += a2 * P[i, 2]
             s0, s1, s2 = _flush(part, i, i1, s0, s1, s2)
-    return _sum_blocks(part)
+    return sum_blocks(part)
 
 
 @njit(parallel=True, cache=True, fastmath=False)
@@ -125,7 +125,7 @@ def _update_xr(X, R, P, AP, minv, alpha, nt):
             s1 += r1 * r1 * m
             s2 += r2 * r2 * m
             s0, s1, s2 = _flush(part, i, i1, s0, s1, s2)
-    return _sum_blocks(part)
+    return sum_blocks(part)
 
 
 @njit(parallel=True, cache=True, fastmath=False)

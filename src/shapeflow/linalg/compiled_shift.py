@@ -29,7 +29,7 @@ from numba import get_num_threads, njit, prange
 # state), a shift finished in every column (report progress), the iteration cap, the records are
 # full (grow them)
 from ..accel import sequential
-from .compiled import BLOCK, _sum_blocks, entries_times3, int32_csr
+from .compiled import BLOCK, entries_times3, int32_csr, sum_blocks
 from .multishift import CAPPED, CHECKPOINT, DONE, GROW, PROGRESS, NumpySeed, Records, ShiftedSystems
 
 __all__ = ["CompiledSeed", "run", "replay", "shifted_powers", "rows_product", "rows_product_seq", "DONE", "CAPPED",
@@ -159,7 +159,7 @@ def _apply_dot(indptr, indices, data, seed, X, P, AP, nt):
     else:
         for b in range(part.shape[0]):
             _apply_block(indptr, indices, data, seed, X, P, AP, part, b)
-    return _sum_blocks(part)
+    return sum_blocks(part)
 
 
 @njit(parallel=True, cache=True)
@@ -183,7 +183,7 @@ def _residual(R, AP, alpha, Rb, slot, c, nt):
         store = slot < Rb.shape[1]
         for b in range(part.shape[0]):
             _residual_block(R, AP, alpha[0], alpha[1], alpha[2], Rb, slot, c, store, part, b)
-    return _sum_blocks(part)
+    return sum_blocks(part)
 
 
 @njit(parallel=True, cache=True)
