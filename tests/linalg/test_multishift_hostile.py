@@ -291,3 +291,26 @@ def test_many_columns_on_two_threads(degree):
     one, two = (on_threads(t, multishift_cg, A, B, shifts, rtol=1e-8, degree=degree) for t in (1, 2))
     assert np.array_equal(one.X, two.X) and two.converged.all()
     claimed_residuals_hold(A, B, shifts, two, 1e-8)
+
+
+@needs_numba
+@pytest.mark.parametrize("degree", [0, 2])
+def test_multishift_cg_called_directly_takes_the_callers_threads(monkeypatch, degree):
+    # a public entry point: accel.use(threads=...) reaches its compiled seed and powers without a
+    # heavy caller around it, and the caller's numba setting comes back afterwards
+    import numba
+
+    import shapeflow.linalg.compiled_shift as cs
+
+    seen = []
+    real = cs.get_num_threads
+    monkeypatch.setattr(cs, "get_num_threads", lambda: seen.append(real()) or seen[-1])
+    A = grid_laplacian(100)
+    B = np.random.default_rng(13).standard_normal((3, A.shape[0]))
+    before = numba.get_num_threads()
+    for threads in sorted({1, min(2, numba.config.NUMBA_NUM_THREADS)}):
+        seen.clear()
+        with accel.use(kernels="force", threads=threads):
+            multishift_cg(A, B, np.geomspace(0.01, 4.0, 12), rtol=1e-8, degree=degree)
+        assert seen and set(seen) == {threads}
+        assert numba.get_num_threads() == before
