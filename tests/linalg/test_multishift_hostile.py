@@ -187,3 +187,130 @@ def test_bad_post_raises_parameter_errors():
                  (None, np.array([0.5, 1.0])), (None, np.ones((2, 2), int))):
         with pytest.raises(ParameterError, match="post"):
             multishift_cg(A, B, [0.1, 1.0], post=post)
+
+
+# --------------------------------------------------------------------------
+# the compiled seed on any number of threads (its passes share the rows out by blocks of
+# linalg.compiled.BLOCK = 4,096 rows whose sums are added in block order)
+# --------------------------------------------------------------------------
+
+needs_numba = pytest.mark.skipif(not accel.numba_available(), reason="the compiled kernels need numba")
+
+
+def path_laplacian(n: int) -> sp.csr_matrix:
+    """The 1-D Laplacian of n unknowns with Dirichlet ends (int32 CSR): SPD, eigenvalues in (0, 4)."""
+    A = sp.diags([-1.0, 2.0, -1.0], [-1, 0, 1], shape=(n, n)).tocsr()
+    A.indices = A.indices.astype(np.int32)
+    A.indptr = A.indptr.astype(np.int32)
+    return A
+
+
+def on_threads(threads, fn, *args, **kw):
+    """``fn`` under the compiled kernels with ``threads`` (through accel.heavy: the count reaches numba)."""
+    with accel.use(kernels="force", threads=threads):
+        return accel.heavy(fn)(*args, **kw)
+
+
+@needs_numba
+@pytest.mark.parametrize("n", [1, 2, 3, 4095, 4096, 4097, 8192, 8193, 20000])
+@pytest.mark.parametrize("degree", [0, 2])
+def test_the_same_bits_on_any_number_of_threads_at_every_block_boundary(n, degree):
+    # fewer rows than threads, one block exactly, one row over, two blocks, two and one row, five;
+    # 3 and 4 threads ask for more than the machine may have (NUMBA_NUM_THREADS caps them)
+    A = path_laplacian(n)
+    B = np.random.default_rng(n).standard_normal((3, n))
+    shifts = np.r_[np.geomspace(0.05, 5.0, 6), 0.05]               # (a repeat)
+    runs = [on_threads(t, multishift_cg, A, B, shifts, rtol=1e-9, degree=degree) for t in (1, 2, 3, 4)]
+    for other in runs[1:]:
+        assert other.krylov_iterations == runs[0].krylov_iterations
+        assert np.array_equal(other.iterations, runs[0].iterations) and np.array_equal(other.X, runs[0].X)
+    assert runs[0].converged.all()
+    claimed_residuals_hold(A, B, shifts, runs[0], 1e-9)
+    with accel.use(kernels="off"):
+        ref = multishift_cg(A, B, shifts, rtol=1e-9, degree=degree)
+    assert np.abs(runs[0].X - ref.X).max() <= 1e-10 * np.abs(ref.X).max()
+
+
+class ResidualSpy:
+    """The seed residuals the fold reads, block after block (``multishift.gemm`` with ``low_rank`` off is
+    called per block and per column, the block's residuals (t1 − t0, n) its second argument), per column
+    in iteration order."""
+
+    def __init__(self, monkeypatch, columns: int):
+        import shapeflow.linalg.multishift as ms
+
+        self.columns, self.calls = columns, []
+        real = ms.gemm
+
+        def gemm(a, b, out, accumulate, **kw):
+            self.calls.append(np.array(b))
+            return real(a, b, out, accumulate, **kw)
+
+        monkeypatch.setattr(ms, "gemm", gemm)
+
+    def take(self) -> list[np.ndarray]:
+        seqs = [np.concatenate(self.calls[j::self.columns]) for j in range(self.columns)]
+        self.calls = []
+        return seqs
+
+
+@needs_numba
+@pytest.mark.parametrize("degree", [0, 2])
+def test_replayed_blocks_are_the_first_pass_bits_on_any_number_of_threads(monkeypatch, degree):
+    # 10,000 unknowns (three blocks of rows: two threads split them); a block of residuals small enough
+    # that the fold replays the seed from saved states several times
+    A = grid_laplacian(100)
+    B = np.random.default_rng(11).standard_normal((3, A.shape[0]))
+    shifts = np.geomspace(0.01, 4.0, 12)
+    small = 8 * 3 * A.shape[0] * (17 if degree == 0 else 7)
+    spy = ResidualSpy(monkeypatch, 3)
+    runs, seqs = {}, {}
+    for threads in (1, 2):
+        for bb in (None, small):
+            kw = {} if bb is None else {"block_bytes": bb}
+            runs[threads, bb] = on_threads(threads, multishift_cg, A, B, shifts, rtol=1e-8, degree=degree,
+                                           low_rank=False, **kw)
+            seqs[threads, bb] = spy.take()
+    assert runs[1, None].flushes == 1 and runs[1, small].flushes > 3 and runs[2, small].replayed > 0
+    assert seqs[1, None][0].shape == (runs[1, None].krylov_iterations, A.shape[0])      # r_0 … r_{m−1}
+    for key in runs:                       # every residual the fold read: the first pass's, bit for bit
+        assert all(np.array_equal(a, b) for a, b in zip(seqs[key], seqs[1, None], strict=True)), key
+    for bb in (None, small):
+        assert np.array_equal(runs[1, bb].X, runs[2, bb].X)
+    assert np.abs(runs[2, small].X - runs[2, None].X).max() <= 1e-12 * np.abs(runs[2, None].X).max()
+
+
+@needs_numba
+@pytest.mark.parametrize("degree", [0, 2])
+def test_many_columns_on_two_threads(degree):
+    # more than the compiled seed's three columns: the reference seed runs them, the factor's powers
+    # (degree 2) stay compiled and share their rows out
+    A = grid_laplacian(95)                      # 9,025 unknowns: three blocks
+    B = np.random.default_rng(12).standard_normal((5, A.shape[0]))
+    shifts = np.geomspace(0.01, 4.0, 40)
+    one, two = (on_threads(t, multishift_cg, A, B, shifts, rtol=1e-8, degree=degree) for t in (1, 2))
+    assert np.array_equal(one.X, two.X) and two.converged.all()
+    claimed_residuals_hold(A, B, shifts, two, 1e-8)
+
+
+@needs_numba
+@pytest.mark.parametrize("degree", [0, 2])
+def test_multishift_cg_called_directly_takes_the_callers_threads(monkeypatch, degree):
+    # a public entry point: accel.use(threads=...) reaches its compiled seed and powers without a
+    # heavy caller around it, and the caller's numba setting comes back afterwards
+    import numba
+
+    import shapeflow.linalg.compiled_shift as cs
+
+    seen = []
+    real = cs.get_num_threads
+    monkeypatch.setattr(cs, "get_num_threads", lambda: seen.append(real()) or seen[-1])
+    A = grid_laplacian(100)
+    B = np.random.default_rng(13).standard_normal((3, A.shape[0]))
+    before = numba.get_num_threads()
+    for threads in sorted({1, min(2, numba.config.NUMBA_NUM_THREADS)}):
+        seen.clear()
+        with accel.use(kernels="force", threads=threads):
+            multishift_cg(A, B, np.geomspace(0.01, 4.0, 12), rtol=1e-8, degree=degree)
+        assert seen and set(seen) == {threads}
+        assert numba.get_num_threads() == before

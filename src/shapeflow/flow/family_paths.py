@@ -62,7 +62,11 @@ def plan_shared_solve(flow_solver: FlowSolver, operator, lams: np.ndarray, notes
     n = flow_solver.mesh.n_vertices
     maxiter = max(200, 10 * int(np.sqrt(n)) + 100)
     absl = np.abs(lams)
-    nz = absl > 0
+    with np.errstate(over="ignore", divide="ignore"):
+        tiny = np.isinf(1.0 / absl) & (absl > 0)     # σ = 1/|λ| beyond double precision (|λ| < 5.6e-309)
+    if tiny.any() and (tiny | (absl == 0)).all():
+        return "every nonzero |λ| is below 1/1.8e308, where the shift σ = 1/|λ| overflows: flow() per λ"
+    nz = (absl > 0) & ~tiny
     hard = np.zeros(lams.size, bool)
     interior_sys = None
     if nz.any():
@@ -99,6 +103,10 @@ def plan_shared_solve(flow_solver: FlowSolver, operator, lams: np.ndarray, notes
     if hard.any():
         note = (f"{int(hard.sum())} member(s) with |λ| > {lam_seed:g} solved separately: the shared CG "
                 f"would need far more than {maxiter} iterations for them")
+    if tiny.any():
+        hard = hard | tiny
+        note = (note + "; " if note else "") + (f"{int(tiny.sum())} member(s) with |λ| below 1/1.8e308 (σ = 1/|λ| "
+                                                "overflows) solved separately")
     return SharedPlan(interior_sys, lam_seed, scale, sigmas, member_shift, hard, maxiter, note, curve_sys)
 
 

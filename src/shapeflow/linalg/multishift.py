@@ -64,6 +64,7 @@ class MultiShiftResult:
     degree: int = 0
 
 
+@accel.heavy        # (a public entry point: the call's threads reach the compiled seed)
 def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxiter: int | None = None,
                   block_bytes: int = BLOCK_BYTES, low_rank: bool = True,
                   progress: Callable[[np.ndarray], None] | None = None,
