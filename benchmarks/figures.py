@@ -82,8 +82,8 @@ FIGURES: tuple[Figure, ...] = (
     Figure(README, "| flow on 937,730 vertices |", "0.89 s, 1.16 GB peak", (FLOW_1M,)),
     Figure(README, "| a 50M-vertex triangle scan (binary PLY)", "20 s + 43 s + 11 s, 20.1 GB peak", SCAN["50M"]),
     Figure(README, "| family of 48 shapes, 46,850 vertices |",
-           "0.68 s; Suzanne ×3 1.8× default kernels, compiled 2.9× (one thread), 3.1× (default threads); "
-           "Suzanne ×4 2.8–3.7×; 48 × flow() 16.0 s; 48 × Blender ≈ 123 s", (*FAMILY, *RATIO, *RATIO_126K,
+           "0.64 s; Suzanne ×3 1.7–1.8× default kernels, compiled 3.1× (one thread), 2.7× (default threads); "
+           "Suzanne ×4 2.1–2.2× default threads, 3.8× one thread; 48 × flow() 15.3 s; 48 × Blender ≈ 123 s", (*FAMILY, *RATIO, *RATIO_126K,
                                                                             FAMILY_BLENDER)),
     Figure(README, "| Catmull–Clark level 2, 40K → 640K vertices |", "369 ms; Blender's Subdivision Surface 242 ms",
            (TORUS_SUB, TORUS_BLENDER)),
@@ -123,11 +123,12 @@ FIGURES: tuple[Figure, ...] = (
     Figure(PERF, "| Catmull–Clark level 2, 40,000 → 640,000 vertices — `bench_subdivision.py` |",
            "369 ms; one S @ V frame 20 ms; Blender 242 ms", (TORUS_SUB, TORUS_SV, TORUS_BLENDER)),
     Figure(PERF, "| family of 48 shapes (figure 1's λ = 0, −5, …, −235), 46,850 vertices — `bench_family.py` |",
-           "684 ms fresh, 640 ms warm; 48 × flow() 16.0 s (25× warm); 48 × Blender ≈ 123 s (from 4)",
+           "642 ms fresh, 588 ms warm; 48 × flow() 15.3 s (26× warm); 48 × Blender ≈ 123 s (from 4)",
            (*FAMILY, FAMILY_BLENDER)),
     Figure(PERF, "| family of 48 shapes (λ = 0 … −235) against one `flow()` at λ = −235",
-           "×3 forced: 238 / 81 ms 2.93× (one thread), 252 / 82 ms 3.08× (default threads); auto: 423 / 236 ms "
-           "1.78×, 422 / 235 ms 1.81×; ×4: 2.80–3.69×; member vs flow() 2.0e-10 (1.8e-10 on NumPy, 8.1e-11 on ×4)",
+           "×3 forced: 234 / 77 ms 3.06× (one thread), 201 / 76 ms 2.67× (default threads); auto: 366 / 219 ms "
+           "1.71×, 382 / 213 ms 1.76×; ×4: 2.09–2.22× (default threads), 3.82–3.84× (one thread); member vs "
+           "flow() 2.0e-10 (1.8e-10 on NumPy, 8.1e-11 on ×4)",
            (*RATIO, *RATIO_126K)),
     Figure(PERF, "| brush dab with 2,600 vertices inside, meshes of 11K–187K vertices — `bench_brush.py` |",
            "2.64–4.73 ms over three runs (p90 ≤ 5.3); 800: 0.98–1.63; 1,800: 2.03–2.94; --sizes 3.18 / 3.12 ms "
@@ -140,11 +141,12 @@ FIGURES: tuple[Figure, ...] = (
            "0.30–0.34 s (re-run 0.15 s); Blender's modifier 8.6 s", ADDON),
     Figure(PERF, "ms idle (default against one thread",
            "90.8 / 89.6 ms idle; two busy processes 125 / 131 ms", (CONTENTION,)),
-    Figure(PERF, "costs 1.12× the family with the compiled kernels forced",
-           "1.12× forced (237 / 209 ms), 1.19× NumPy/SciPy (431 / 361 ms); 15 rounds, load 1.0",
+    Figure(PERF, "it costs 1.12× the family with the compiled kernels forced",
+           "1.12× forced, 1.17× NumPy/SciPy (per-round medians); 15 rounds, load 1.2",
            (Pick("family-check-cost", r"before:|after:|^  kernels"),)),
-    Figure(PERF, "family is 2.93× one `flow()` on one thread",
-           "69 iterations of 3 products against 95; 2.93× / 3.08× compiled on ×3, 1.78–1.81× NumPy, 2.80–3.69× on ×4",
+    Figure(PERF, "In the run of 2026-11-26 with the threads (table above)",
+           "69 iterations of 3 products against 95; 3.06× / 2.67× compiled on ×3 (one / default threads), "
+           "2.09–2.22× / 3.82–3.84× on ×4",
            (*RATIO, *RATIO_126K)),
     Figure(PERF, "| dab, wall (p10–p90) |", "3.18 (2.57–7.60) / 3.12 (2.58–10.19) ms, 0.98",
            (BRUSH_SIZES,)),
