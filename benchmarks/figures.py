@@ -83,8 +83,8 @@ FIGURES: tuple[Figure, ...] = (
     Figure(README, "| a 50M-vertex triangle scan (binary PLY)", "20 s + 43 s + 11 s, 20.1 GB peak", SCAN["50M"]),
     Figure(README, "| family of 48 shapes, 46,850 vertices |",
            "0.64 s; Suzanne ×3 1.7–1.8× default kernels, compiled 3.1× (one thread), 2.7× (default threads); "
-           "Suzanne ×4 2.1–2.2× default threads, 3.8× one thread; 48 × flow() 15.3 s; 48 × Blender ≈ 123 s", (*FAMILY, *RATIO, *RATIO_126K,
-                                                                            FAMILY_BLENDER)),
+           "Suzanne ×4 2.1–2.2× default threads, 3.8× one thread; 48 × flow() 15.3 s; 48 × Blender ≈ 123 s",
+           (*FAMILY, *RATIO, *RATIO_126K, FAMILY_BLENDER)),
     Figure(README, "| Catmull–Clark level 2, 40K → 640K vertices |", "369 ms; Blender's Subdivision Surface 242 ms",
            (TORUS_SUB, TORUS_BLENDER)),
     Figure(README, "| brush dab with 2,600 vertices inside (11K–187K-vertex meshes) |",

@@ -29,7 +29,8 @@ Settings
     the moment of the call (``/proc/loadavg``) — so a busy machine gets one thread instead of
     OpenMP workers waiting for a scheduler slice at every barrier; an integer fixes it.
     ``NUMBA_NUM_THREADS`` caps both.  The caller's own numba thread setting is restored after each
-    call.
+    call.  The count never changes a result: parallel sums are taken per fixed block of rows and
+    added in block order.
 ``small_pages``
     Opt-in (default False).  NumPy asks Linux for transparent huge pages on
     every array of 4 MB or more.  On the virtual machines shapeflow is
@@ -77,6 +78,9 @@ True
 >>> with accel.use(kernels="off"):
 ...     accel.kernels("operators", 10**9).backend
 'numpy'
+>>> with accel.use(threads=1):          # one thread for the calls inside (the same results)
+...     accel.thread_count()
+1
 """
 
 from __future__ import annotations

@@ -138,8 +138,9 @@ ROWS = 2048
 def member_residuals(indptr, indices, data, R0, out, base, inv_scale, cols, members, signs, deltas):
     """``FlowKernels.member_residuals`` compiled: per block of :data:`RESIDUAL_MEMBERS` members, their
     displacements in one (n, 3 × block) array, then one pass over the matrix for all of them.  The
-    rows are shared out between the call's threads by blocks of :data:`ROWS` rows, whose partial sums
-    are added in block order (the same result on any number of threads)."""
+    rows are shared out between numba's threads for the call (``accel.use(threads=…)``, applied by
+    ``family()``) by blocks of :data:`ROWS` rows, whose partial sums are added in block order, so the
+    result has the same bits on any number of threads."""
     c, n = cols.size, base.shape[0]
     cols3 = np.empty(3, np.int64)
     cols3[:] = cols[0]

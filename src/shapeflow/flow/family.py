@@ -59,10 +59,11 @@ Rather than two axpy passes per member per iteration (48 members × 3 columns
 (:data:`BLOCK_BYTES`) and the members' iterates are formed with one GEMM per
 block — usually one in all (:func:`multishift_cg`); the per-member
 recurrences only touch coefficients.  Measured on the 46,850-vertex figure-1
-family (``benchmarks/bench_family.py``, 2-core machine under load ~2): the
-48 members in 0.65–0.9 s (against the hardest member's flow() alone: docs/performance.md,
-"The family's shared solve"),
-against ~21 s for 48 flow() calls and ~200 s for 48 Blender evaluations.
+family (``benchmarks/bench_family.py``, 2-core machine, load ~1, 2026-11-26): the
+48 members in 0.59–0.64 s (against the hardest member's flow() alone: docs/performance.md,
+"The family's shared solve"), against 15.3 s for 48 flow() calls and ~123 s for 48 Blender
+evaluations.  The compiled seed, the factor's powers and the check run on the call's threads
+(``accel.use(threads=…)``); the result has the same bits on any number of threads.
 
 Paths
 -----
@@ -172,6 +173,10 @@ def family(mesh: Mesh, lams: Sequence[float], *, lam_border: float = 0.0, iterat
         Called as members are finished (total = number of members).
     return_report : bool
         Also return a :class:`FamilyReport` (which path ran and why).
+
+    With the compiled kernels the shared solve runs on the threads of ``accel.use(threads=…)``
+    (default ``"auto"``: the cores free when the call starts); the members have the same bits on any
+    number of threads.
 
     Returns
     -------

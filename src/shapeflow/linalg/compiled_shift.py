@@ -11,11 +11,13 @@ zero and never iterates).  An iteration is three passes over the rows (the produ
 the residual update with its dots and its copy into the block, the direction update) and
 O(shifts × block) scalar work; the block's GEMMs stay in NumPy (BLAS).
 
-Each pass over the rows uses the call's threads (``accel`` ``threads``): the rows are shared out by
+Each pass over the rows uses numba's threads for the call: ``accel.use(threads=1)`` (or 2, …;
+``"auto"``, the default, takes the cores free when the call starts, ``NUMBA_NUM_THREADS`` caps it),
+applied by the heavy entry points (``family()``, ``multishift_cg``).  The rows are shared out by
 blocks, whose sums are added in block order, so the result has the same bits on any number of
 threads (``tests/linalg/test_multishift.py``).  Unlike the flow's symmetric Gauss–Seidel sweeps, which
-are sequential, the seed's products split: on two cores the family of figure 1 on Suzanne ×3 takes
-~0.7× its one-thread time (docs/performance.md).
+are sequential, the seed's products split: figure 1's 48 members on Suzanne ×3 take ~0.7–0.75× their
+one-thread time when both cores are free (docs/performance.md).
 Conventions of all compiled kernels: :mod:`shapeflow.accel`.
 """
 
