@@ -143,7 +143,11 @@ def test_families_from_two_python_threads_at_once():
     for t in workers:
         t.join(120)
     assert not errors and sorted(got) == [0, 1, 2, 3]
-    assert all(np.array_equal(s, want) for runs in got.values() for s in runs)
+    # to rounding, not bit for bit: with a cold compiled-code cache one run in four gave a few members one
+    # unit in the last place apart (none in six with OPENBLAS_NUM_THREADS=1); the thread count alone
+    # never changes a bit (test_the_family_gives_the_same_bits_on_any_number_of_threads)
+    ulp = 4 * np.finfo(np.float64).eps * np.abs(want).max()
+    assert all(np.abs(s - want).max() <= ulp for runs in got.values() for s in runs)
     assert numba.get_num_threads() == before
 
 
