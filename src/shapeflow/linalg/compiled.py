@@ -36,6 +36,13 @@ def entries_times3(q0, q1, indices, data, B):
 BLOCK = 4096
 
 
+@njit(inline="always")
+def thread_rows(t, nt, nb, n):
+    """Rows i0 … i1 − 1 of thread t's run when the n rows, ``nb`` blocks of :data:`BLOCK`, are shared out
+    between ``nt`` threads as runs of whole blocks (the blocks b0 … b1 − 1, b0 = i0 / BLOCK)."""
+    return (t * nb // nt) * BLOCK, min(n, ((t + 1) * nb // nt) * BLOCK)
+
+
 @njit(cache=True)
 def sum_blocks(part):
     out = np.zeros(3)
@@ -74,8 +81,7 @@ def _spmm_dot(indptr, indices, data, P, AP, nt):
     part = np.zeros((nb, 3))
     nt = max(1, min(nt, nb))
     for t in prange(nt):
-        i0 = (t * nb // nt) * BLOCK
-        i1 = min(n, ((t + 1) * nb // nt) * BLOCK)
+        i0, i1 = thread_rows(t, nt, nb, n)
         s0 = 0.0
         s1 = 0.0
         s2 = 0.0
@@ -105,8 +111,7 @@ def _update_xr(X, R, P, AP, minv, alpha, nt):
     part = np.zeros((nb, 3))
     nt = max(1, min(nt, nb))
     for t in prange(nt):
-        i0 = (t * nb // nt) * BLOCK
-        i1 = min(n, ((t + 1) * nb // nt) * BLOCK)
+        i0, i1 = thread_rows(t, nt, nb, n)
         s0 = 0.0
         s1 = 0.0
         s2 = 0.0

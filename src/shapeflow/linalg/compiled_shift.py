@@ -31,7 +31,7 @@ from numba import get_num_threads, njit, prange
 # state), a shift finished in every column (report progress), the iteration cap, the records are
 # full (grow them)
 from ..accel import sequential
-from .compiled import BLOCK, entries_times3, int32_csr, sum_blocks
+from .compiled import BLOCK, entries_times3, int32_csr, sum_blocks, thread_rows
 from .multishift import CAPPED, CHECKPOINT, DONE, GROW, PROGRESS, NumpySeed, Records, ShiftedSystems
 
 __all__ = ["CompiledSeed", "run", "replay", "shifted_powers", "rows_product", "rows_product_seq", "DONE", "CAPPED",
@@ -129,7 +129,8 @@ def _combine_par(indptr, indices, data, seed, X, sx, P, sp_, Y, nt):
     nb = (n + BLOCK - 1) // BLOCK
     nt = max(1, min(nt, nb))
     for t in prange(nt):
-        for i in range((t * nb // nt) * BLOCK, min(n, ((t + 1) * nb // nt) * BLOCK)):
+        i0, i1 = thread_rows(t, nt, nb, n)
+        for i in range(i0, i1):
             _combine_row(indptr, indices, data, seed, X, sx, P, sp_, Y, i)
 
 
@@ -148,7 +149,7 @@ def _apply_dot_par(indptr, indices, data, seed, X, P, AP, part, nt):
     nb = part.shape[0]
     nt = max(1, min(nt, nb))
     for t in prange(nt):
-        for b in range(t * nb // nt, (t + 1) * nb // nt):
+        for b in range(t * nb // nt, (t + 1) * nb // nt):      # (thread_rows' run, as blocks)
             _apply_block(indptr, indices, data, seed, X, P, AP, part, b)
 
 
@@ -170,7 +171,7 @@ def _residual_par(R, AP, alpha, Rb, slot, c, part, nt):
     nt = max(1, min(nt, nb))
     store = slot < Rb.shape[1]
     for t in prange(nt):
-        for b in range(t * nb // nt, (t + 1) * nb // nt):
+        for b in range(t * nb // nt, (t + 1) * nb // nt):      # (thread_rows' run, as blocks)
             _residual_block(R, AP, alpha[0], alpha[1], alpha[2], Rb, slot, c, store, part, b)
 
 
@@ -194,7 +195,8 @@ def _direction_par(P, R, beta, nt):
     nb = (n + BLOCK - 1) // BLOCK
     nt = max(1, min(nt, nb))
     for t in prange(nt):
-        for i in range((t * nb // nt) * BLOCK, min(n, ((t + 1) * nb // nt) * BLOCK)):
+        i0, i1 = thread_rows(t, nt, nb, n)
+        for i in range(i0, i1):
             _direction_row(P, R, beta[0], beta[1], beta[2], i)
 
 
@@ -448,7 +450,8 @@ def rows_product(indptr, indices, data, seed, Y, Z, store, Zt, pos, sc, Yt, nt):
     nt = max(1, min(nt, nb))
     for th in prange(nt):
         acc = np.empty(r)
-        for i in range((th * nb // nt) * BLOCK, min(n, ((th + 1) * nb // nt) * BLOCK)):
+        i0, i1 = thread_rows(th, nt, nb, n)
+        for i in range(i0, i1):
             for t in range(r):
                 acc[t] = seed * Y[i, t]
             for q in range(indptr[i], indptr[i + 1]):
