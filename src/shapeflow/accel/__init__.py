@@ -258,7 +258,7 @@ def sequential(kernel):
     build on one thread: the Jacobi CG's product and updates (a CG solve of a step on Suzanne 126K
     triangulated 40 → 37 ms, medians of 25 interleaved rounds, 2026-11-24).  The edge sort's twin
     was not faster (13.1 vs 12.6 ms), so it has none.  Both builds compute the same sums in the
-    same order, so they give the same bits.
+    same order, so they give the same bits (the twin keeps the kernel's ``fastmath`` and ``error_model``).
     """
     import types
 
@@ -271,7 +271,8 @@ def sequential(kernel):
     twin.__qualname__ = f.__qualname__ + "_sequential"
     twin.__module__ = f.__module__
     twin.__doc__ = f.__doc__
-    return numba.njit(cache=True)(twin)
+    opts = {k: v for k, v in kernel.targetoptions.items() if k in ("fastmath", "error_model")}
+    return numba.njit(cache=True, **opts)(twin)
 
 
 def zeros(shape, dtype=None):

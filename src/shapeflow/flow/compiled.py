@@ -233,16 +233,26 @@ def _scatter_members(out, base, cols, i0, rows, members, shift_of, signs, bad):
         o = out[members[p]]
         q = shift_of[p]
         sg = signs[p]
-        check = 0.0
+        flag = False
         for i in range(w):
-            o[i0 + i, 0] = base[i0 + i, 0]
-            o[i0 + i, 1] = base[i0 + i, 1]
-            o[i0 + i, 2] = base[i0 + i, 2]
+            x0 = base[i0 + i, 0]
+            x1 = base[i0 + i, 1]
+            x2 = base[i0 + i, 2]
             for t in range(c):
                 v = rows[t, q, i]
-                check += v * 0.0                # NaN once a value is not finite
-                o[i0 + i, cols[t]] += sg * v
-        if check != 0.0:
+                if v * 0.0 != 0.0:              # NaN once a value is not finite (a test, not a chain of sums)
+                    flag = True
+                j = cols[t]
+                if j == 0:
+                    x0 += sg * v
+                elif j == 1:
+                    x1 += sg * v
+                else:
+                    x2 += sg * v
+            o[i0 + i, 0] = x0
+            o[i0 + i, 1] = x1
+            o[i0 + i, 2] = x2
+        if flag:
             bad[q] = True
 
 

@@ -153,10 +153,13 @@ class FlowKernels(Family):
         rows = np.empty((c, k, width))
         lefts = [np.ascontiguousarray(L) for L in lefts]
         pieces = [W if isinstance(W, tuple) else (W,) for W in Ws]
-        parts = [np.empty((width, L.shape[1])) for L in lefts]        # a block of Ws[t]'s rows
+        parts = [None if len(P) == 1 else np.empty((width, L.shape[1])) for L, P in zip(lefts, pieces)]
         for i0 in range(0, n, ADD_ROWS):                           # (blocks of vertices)
             w = min(n, i0 + ADD_ROWS) - i0
             for t in range(c):
+                if len(pieces[t]) == 1:                             # (its rows i0 … i0 + w − 1: contiguous)
+                    gemm(lefts[t], np.ascontiguousarray(pieces[t][0][i0:i0 + w]), rows[t, :, :w], trans_b=True)
+                    continue
                 o = 0
                 for P in pieces[t]:                                 # the block's rows side by side
                     parts[t][:w, o:o + P.shape[1]] = P[i0:i0 + w]

@@ -18,6 +18,12 @@ blocks, whose sums are added in block order, so the result has the same bits on 
 threads (``tests/linalg/test_multishift.py``).  Unlike the flow's symmetric Gauss–Seidel sweeps, which
 are sequential, the seed's products split: figure 1's 48 members on Suzanne ×3 take ~0.7–0.75× their
 one-thread time when both cores are free (docs/performance.md).
+The seed's kernels are compiled with ``fastmath={"contract"}`` alone: a multiply and the add that
+follows become one fused multiply-add (a product of Suzanne ×3's matrix with three columns 0.40 →
+0.34 ms, the first pass ~109 → ~96 ms on one thread, 2026-11-26), and nothing is reassociated, so the
+sums keep their order and the same bits on any number of threads (their parallel and one-thread builds
+fuse the same operations: ``tests/linalg/test_multishift.py``).  :func:`rows_product` is compiled without
+it: its parallel build and its sequential twin fused differently (measured), and it gained nothing.
 Conventions of all compiled kernels: :mod:`shapeflow.accel`.
 """
 
@@ -42,7 +48,7 @@ __all__ = ["CompiledSeed", "run", "replay", "shifted_powers", "rows_product", "r
 PROGRESS_EVERY = 8
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def _product(indptr, indices, data, seed, P, AP, nt):
     """AP = (A + seed I) P for the three columns of P (n, 3); returns pᵀAp per column."""
     return _apply_dot(indptr, indices, data, seed, P, P, AP, nt)
@@ -123,7 +129,7 @@ def _residual_block(R, AP, a0, a1, a2, Rb, slot, c, store, part, b):
     part[b, 2] = s2
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, fastmath={"contract"})
 def _combine_par(indptr, indices, data, seed, X, sx, P, sp_, Y, nt):
     n = indptr.size - 1
     nb = (n + BLOCK - 1) // BLOCK
@@ -134,7 +140,7 @@ def _combine_par(indptr, indices, data, seed, X, sx, P, sp_, Y, nt):
             _combine_row(indptr, indices, data, seed, X, sx, P, sp_, Y, i)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def _combine(indptr, indices, data, seed, X, sx, P, sp_, Y, nt):
     """Y = sx (A + seed I) X + sp P (three columns)."""
     if nt > 1:
@@ -144,7 +150,7 @@ def _combine(indptr, indices, data, seed, X, sx, P, sp_, Y, nt):
         _combine_row(indptr, indices, data, seed, X, sx, P, sp_, Y, i)
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, fastmath={"contract"})
 def _apply_dot_par(indptr, indices, data, seed, X, P, AP, part, nt):
     nb = part.shape[0]
     nt = max(1, min(nt, nb))
@@ -153,7 +159,7 @@ def _apply_dot_par(indptr, indices, data, seed, X, P, AP, part, nt):
             _apply_block(indptr, indices, data, seed, X, P, AP, part, b)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def _apply_dot(indptr, indices, data, seed, X, P, AP, nt):
     """AP = (A + seed I) X for the three columns of X (n, 3); returns pᵀ(AP) per column, p from P."""
     part = np.zeros(((indptr.size - 1 + BLOCK - 1) // BLOCK, 3))
@@ -165,7 +171,7 @@ def _apply_dot(indptr, indices, data, seed, X, P, AP, nt):
     return sum_blocks(part)
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, fastmath={"contract"})
 def _residual_par(R, AP, alpha, Rb, slot, c, part, nt):
     nb = part.shape[0]
     nt = max(1, min(nt, nb))
@@ -175,7 +181,7 @@ def _residual_par(R, AP, alpha, Rb, slot, c, part, nt):
             _residual_block(R, AP, alpha[0], alpha[1], alpha[2], Rb, slot, c, store, part, b)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def _residual(R, AP, alpha, Rb, slot, c, nt):
     """R −= αAP (three columns), its first ``c`` columns copied into ``Rb[:, slot]`` when ``slot`` is
     inside the block; returns rᵀr per column."""
@@ -189,7 +195,7 @@ def _residual(R, AP, alpha, Rb, slot, c, nt):
     return sum_blocks(part)
 
 
-@njit(parallel=True, cache=True)
+@njit(parallel=True, cache=True, fastmath={"contract"})
 def _direction_par(P, R, beta, nt):
     n = P.shape[0]
     nb = (n + BLOCK - 1) // BLOCK
@@ -200,7 +206,7 @@ def _direction_par(P, R, beta, nt):
             _direction_row(P, R, beta[0], beta[1], beta[2], i)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def _direction(P, R, beta, nt):
     """P = R + βP (three columns)."""
     if nt > 1:
@@ -213,7 +219,7 @@ def _direction(P, R, beta, nt):
         _direction_row(P, R, b0, b1, b2, i)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def _poly_product(indptr, indices, data, seed, coef, P, AP, T, U, nt):
     """AP = A₀ p(A₀) P (A₀ = A + seed I, p of degree ≥ 1 with monomial coefficients ``coef``) by
     Horner's scheme, as ``NumpySeed.poly_product``: T and U scratch (n, 3); returns pᵀAp per column."""
@@ -227,7 +233,7 @@ def _poly_product(indptr, indices, data, seed, coef, P, AP, T, U, nt):
     return _apply_dot(indptr, indices, data, seed, src, P, AP, nt)
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def _seed_product(indptr, indices, data, seed, coef, P, AP, T, U, nt):
     """The seed's operator applied to P: A₀ P when ``coef`` is empty, else :func:`_poly_product`."""
     if coef.size == 0:
@@ -235,7 +241,8 @@ def _seed_product(indptr, indices, data, seed, coef, P, AP, T, U, nt):
     return _poly_product(indptr, indices, data, seed, coef, P, AP, T, U, nt)
 
 
-@njit(cache=True, error_model="numpy")     # (x / 0 is ±inf or NaN, as in NumpySeed: ζ of a finished shift)
+# (error_model: x / 0 is ±inf or NaN, as in NumpySeed: ζ of a finished shift)
+@njit(cache=True, error_model="numpy", fastmath={"contract"})
 def run(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, delta, zeta, zeta_prev, rho, alpha_prev, beta_prev,
         tol2, active, live, iterations, ra, rb, rz, sa, sb, srho, state, maxiter, nt):
     """The first pass of ``NumpySeed.first_pass`` until a block boundary, a finished shift, the end,
@@ -325,7 +332,7 @@ def run(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, delta, zeta, zeta
     return CAPPED
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})
 def replay(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, sa, sb, t0, t1, nt):
     """The residuals r_t0 … r_{t1−1} into ``Rb[:, 0 … t1−t0−1]`` from R = r_t0, P = p_t0 (the state
     saved after iteration t0) with the recorded α and β: the first pass's arithmetic, so the same bits."""

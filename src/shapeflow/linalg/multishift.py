@@ -255,7 +255,8 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
                 gemm(Rv[j], factors[j][1][t0:t1], W[j], True, trans_a=True)
             else:
                 gemm(Cp[j][:, t0:t1], Rv[j], X[full.index(j)], b > 0)
-    spare = seed_cg.Rb                                  # (its pages are in memory: the powers go there)
+    used = cap if nblocks > 1 else max(1, min(m, cap))  # the slots written (their pages are in memory:
+    spare = [seed_cg.Rb[j, :used].reshape(-1) for j in range(c)]    # the powers go there)
     seed_cg.release()
     if not nblocks and X is not None:
         X[:] = 0.0

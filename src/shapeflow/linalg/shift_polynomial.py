@@ -156,28 +156,36 @@ class SeedPolynomial:
             X += pis[:, i:i + 1] * P[i].T
         return X
 
-    def extend(self, lefts: list, Ws: list, pis: np.ndarray, spare: np.ndarray | None = None,
+    def extend(self, lefts: list, Ws: list, pis: np.ndarray, spare: list | None = None,
                post: tuple | None = None) -> None:
         """The low-rank factors of the solutions from those of the y's, in place for each column j with
         factors (``lefts[j]`` (k, r), ``Ws[j]`` a 1-tuple of (n, r) vertex-major; None: skipped):
         ``[pis[:, 0] left, …, pis[:, d] left]`` and the pieces ``(W, A₀ W, …, A₀^d W)`` transformed by
-        ``post`` = (scale, take) (the linalg kernel family's ``shifted_powers``), written into
-        ``spare`` (a float64 buffer no longer needed, such as the seed's block of residuals, whose
-        pages are in memory already) while it lasts."""
+        ``post`` = (scale, take) (the linalg kernel family's ``shifted_powers``), side by side in one
+        (·, (d + 1) r) array, the new ``Ws[j]`` = (that array,).  They are written into ``spare`` (flat
+        float64 buffers no longer needed, such as the slots of the seed's block of residuals that the
+        solve wrote, whose pages are in memory already) while it lasts."""
         scale, take = post if post is not None else (None, None)
-        flat = np.zeros(0) if spare is None else spare.reshape(-1)
-        o = 0
+        free = [[b, 0] for b in (spare or [])]
+
+        def memory(rows, width):                    # first fit in ``spare``, else new
+            for slot in free:
+                b, o = slot
+                if o + rows * width <= b.size:
+                    slot[1] = o + rows * width
+                    return b[o:o + rows * width].reshape(rows, width)
+            return np.empty((rows, width))
+
+        d = self.degree
         for j in range(len(Ws)):
             if Ws[j] is None:
                 continue
             (W,) = Ws[j]
             n, r = W.shape
-            mem = []
-            for _ in range(self.degree + 2):
-                if o + n * r <= flat.size:
-                    mem.append(flat[o:o + n * r].reshape(n, r))
-                    o += n * r
+            wide = memory(n if take is None else take.size, (d + 1) * r)     # the pieces side by side
+            mem = [wide[:, i * r:(i + 1) * r] for i in range(d + 1)] + [memory(n, r)]
             kern = accel.kernels("linalg", n)
-            Ws[j] = tuple(kern.shifted_powers(self.A, self.seed, W, self.degree, mem, take, scale))
+            res = kern.shifted_powers(self.A, self.seed, W, d, mem, take, scale)
+            Ws[j] = (wide,) if all(res[i] is mem[i] for i in range(d + 1)) else tuple(res)
             lefts[j] = np.ascontiguousarray(np.concatenate([pis[:, i:i + 1] * lefts[j]
                                                             for i in range(self.degree + 1)], axis=1))
