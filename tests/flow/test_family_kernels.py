@@ -180,3 +180,33 @@ def test_family_takes_the_low_rank_path_and_its_check_finds_a_wrong_factor(kerne
             bad, report = sf.family(mesh, lams, return_report=True)
         assert report.fallback_members == [42]
         assert np.abs(bad[42] - sf.flow(mesh, -210.0).vertices).max() <= 1e-7 * mesh.diagonal
+
+
+@pytest.mark.parametrize("kernels", KERNELS)
+def test_members_outside_the_shared_solve_survive_the_result_used_as_its_scratch(kernels, monkeypatch):
+    """The shared solve forms its factor in the result's memory (``MemberSink.scratch``, filled with NaN
+    here before it is handed out): the members it does not write — λ = 0 (the input), a λ below
+    1/1.8e308 (solved as flow()) — are written afterwards, and the members checked equal flow() at their
+    λ (the first members: those whose memory the factor took)."""
+    mesh = cube_sphere(22, mix=0.3, seed=3)
+    lams = np.r_[0.0, -1e-310, np.arange(-5.0, -240.0, -5.0)[:20], 0.0, np.arange(-5.0, -240.0, -5.0)[20:]]
+    real = paths.MemberSink.scratch
+    used = []
+
+    def garbage(self, size):
+        buf = real(self, size)
+        if buf is not None:
+            buf[:] = np.nan
+            used.append(size)
+        return buf
+
+    monkeypatch.setattr(paths.MemberSink, "scratch", garbage)
+    with accel.use(kernels=kernels):
+        fam = sf.family(mesh, lams)
+        assert used, "the shared solve did not use the result as its scratch"
+        V = mesh.vertices
+        for m in np.flatnonzero(lams == 0.0):
+            assert np.array_equal(fam[m], V)
+        for m in (1, 3, lams.size - 2):
+            want = sf.flow(mesh, float(lams[m])).vertices
+            assert np.abs(fam[m] - want).max() <= 1e-7 * np.ptp(V, axis=0).max(), m

@@ -190,3 +190,65 @@ def test_compiled_seed_gives_the_same_bits_on_any_number_of_threads(degree):
         ref = multishift_cg(A, B, SHIFTS, rtol=1e-8, degree=degree)
     assert one.krylov_iterations == ref.krylov_iterations
     assert np.abs(one.X - ref.X).max() <= 1e-11 * np.abs(ref.X).max()
+
+
+class FactorSink:
+    """An ``emit`` receiving the low-rank factors, with a ``scratch`` buffer of garbage (NaN) to offer."""
+
+    def __init__(self, scratch_size: int | None):
+        self.buf = None if scratch_size is None else np.full(scratch_size, np.nan)
+        self.asked = []
+
+    def __call__(self, shifts, rows):                  # (not called when every column has factors)
+        raise AssertionError("rows were formed")
+
+    def scratch(self, size):
+        self.asked.append(size)
+        return None if self.buf is None or size > self.buf.size else self.buf[:size]
+
+    def factors(self, lefts, Ws):
+        self.lefts, self.Ws = lefts, Ws
+
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+@pytest.mark.parametrize("scratch", [None, 10**7])
+def test_factors_are_padded_to_a_multiple_of_eight_and_formed_in_the_receivers_scratch(problem, kernels, scratch):
+    """With the polynomial preconditioner the factor's width is padded with zero columns to a multiple of
+    ``RANK_MULTIPLE`` (its powers' loop then has no remainder); the ranks reported are the truncation's;
+    the y's factor is formed in the receiver's ``scratch`` when it offers one (filled with NaN here: it
+    must be zeroed first), and the members are the same either way, equal to direct solves."""
+    from shapeflow.linalg.multishift import RANK_MULTIPLE
+    A, B, _ = problem
+    sink = FactorSink(scratch)
+    with accel.use(kernels=kernels):
+        res = multishift_cg(A, B, MANY, rtol=1e-8, degree=2, emit=sink)
+    assert res.converged.all() and res.X is None
+    n = A.shape[0]
+    assert sink.asked == [n * sum(-(-r // RANK_MULTIPLE) * RANK_MULTIPLE for r in res.ranks)]
+    if scratch is not None:
+        assert not np.isnan(sink.buf[:sink.asked[0]]).any()      # used (zeroed, then the factor)
+    some = np.arange(0, MANY.size, 9)
+    ref = direct(A, B, MANY[some])
+    for j in range(3):
+        r = res.ranks[j]
+        width = -(-r // RANK_MULTIPLE) * RANK_MULTIPLE
+        (wide,) = sink.Ws[j]
+        assert wide.shape == (n, 3 * width) and sink.lefts[j].shape == (MANY.size, 3 * width)
+        for piece in range(3):                      # the padded columns: zero in the left factor
+            assert not sink.lefts[j][:, piece * width + r:(piece + 1) * width].any()
+            assert sink.lefts[j][:, piece * width + r - 1].any()       # (the ranks reported are not padded)
+        X = sink.lefts[j] @ wide.T
+        for q, i in enumerate(some):
+            x = ref[j, q]
+            assert np.abs(X[i] - x).max() <= 1e-6 * np.abs(x).max(), (i, j)
+
+
+def test_padded_factors_keep_the_product():
+    from shapeflow.linalg.multishift import RANK_MULTIPLE, padded_factors
+    rng = np.random.default_rng(5)
+    for r in (1, 7, 8, 9, 15, 16):
+        L, R = rng.normal(size=(11, r)), rng.normal(size=(30, r))
+        Lp, Rp = padded_factors(L, R)
+        assert Lp.shape[1] == Rp.shape[1] == -(-r // RANK_MULTIPLE) * RANK_MULTIPLE
+        assert np.array_equal(Lp[:, :r], L) and np.array_equal(Rp[:, :r], R)
+        assert np.array_equal(Lp @ Rp.T, L @ R.T)

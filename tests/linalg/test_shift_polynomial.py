@@ -142,3 +142,41 @@ def test_shifted_powers_give_the_same_bits_on_any_number_of_threads():
             got[threads] = powers(A, 0.3, Y, 2, None, perm, scale)
     for one, two in zip(got[1], got[2]):
         assert np.array_equal(one, two)
+
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+def test_extend_writes_the_pieces_side_by_side_into_the_spare_slabs_while_they_last(kernels):
+    """``SeedPolynomial.extend``: per column the pieces [W, A₀W, A₀²W] (scaled, rows taken) side by side
+    in one array, in the first spare slab with room (first fit; new memory once none has), the left factor
+    [π₀L, π₁L, π₂L] — the same values with or without spare memory, against SciPy's products."""
+    import types
+
+    from shapeflow.linalg.shift_polynomial import SeedPolynomial
+    A = grid_laplacian(40)
+    n, r, k, seed = A.shape[0], 8, 5, 0.3
+    rng = np.random.default_rng(4)
+    Ws = [rng.normal(size=(n, r)) for _ in range(3)]
+    lefts = [rng.normal(size=(k, r)) for _ in range(3)]
+    pis = rng.normal(size=(k, 3))
+    perm, scale = rng.permutation(n), rng.uniform(0.5, 2.0, n)
+    A0 = A + seed * sp.eye(n)
+    poly = SeedPolynomial(A, types.SimpleNamespace(seed=seed), 2, np.array([1.0, 0.5, 0.1]), np.zeros(k), pis)
+    # slab 0 holds one column's pieces and scratch (4 n r), slab 1 one more, slab 2 too small
+    slabs = [np.full(4 * n * r + 5, np.nan), np.full(4 * n * r, np.nan), np.full(n * r - 1, np.nan)]
+    got = {}
+    with accel.use(kernels=kernels):
+        for spare in (None, slabs):
+            L, W = [x.copy() for x in lefts], [(x.copy(),) for x in Ws]
+            poly.extend(L, W, pis, spare, (scale, perm))
+            got[spare is None] = (L, W)
+    for j in range(3):
+        (wide,) = got[False][1][j]
+        assert wide.shape == (n, 3 * r)
+        assert np.shares_memory(wide, slabs[j]) if j < 2 else not any(np.shares_memory(wide, s) for s in slabs)
+        want = [Ws[j]]
+        for _ in range(2):
+            want.append(A0 @ want[-1])
+        want = np.hstack([(w * scale[:, None])[perm] for w in want])
+        for spare_none in (True, False):
+            assert np.allclose(got[spare_none][1][j][0], want, rtol=1e-13, atol=1e-13 * np.abs(want).max())
+            assert np.array_equal(got[spare_none][0][j], np.hstack([pis[:, i:i + 1] * lefts[j] for i in range(3)]))

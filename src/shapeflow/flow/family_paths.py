@@ -142,7 +142,6 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
         report.notes.append(f"{int(bad.sum())} vertices with a non-finite solution kept in place")
     out = np.empty((k, n, 3))
     solved = plan.member_shift >= 0
-    out[~solved] = base                             # the shared solve's members are written by its sink
     zero = (plan.member_shift < 0) & ~plan.hard     # λ = 0: V with the boundary moved
     tick(int(zero.sum()))
     if plan.hard.any():
@@ -160,7 +159,7 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
         finite = np.ones(plan.sigmas.size, bool)
         sink = MemberSink(out, base, lams, ax, member_of_shift, finite)
         res, system = run_shared(flow_solver, operator, plan, X, ax, sink, on_progress)
-        out[solved & ~sink.filled] = base
+        out[~solved | ~sink.filled] = base          # (``out`` was the solve's scratch until the sink wrote)
         report.krylov_iterations = res.krylov_iterations
         report.krylov_degree = getattr(res, "degree", 0)
         ok = res.converged.all(axis=1) & finite
@@ -179,8 +178,8 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
                    f"residual (λ = {', '.join(f'{lams[m]:g}' for m in wrong)}): solved separately, as flow()")
             report.notes.append(msg)
             warnings.warn(SolverWarning(msg), stacklevel=4)
-    elif solved.any():
-        out[solved] = base
+    else:
+        out[:] = base
         tick(int(solved.sum()))                             # no free interior vertex: boundary moves only
     if preserve_volume:
         has_interior, has_boundary = interior_sys is not None or curve_sys is not None, boundary_sys is not None
@@ -216,6 +215,12 @@ class MemberSink:
                         out[m, :, j] += rows[t, q]
                     else:
                         out[m, :, j] -= rows[t, q]
+
+    def scratch(self, size: int):
+        """``out`` as a flat buffer of ``size`` values, None if it is smaller: free until :meth:`factors`
+        or ``__call__`` writes the members (``shared_solve`` writes every other member afterwards)."""
+        flat = self.out.reshape(-1)
+        return flat[:size] if size <= flat.size and not self.filled.any() else None
 
     def factors(self, lefts: list, Ws: list) -> None:
         """Every shift's solution from its low-rank factors: column t is ``lefts[t] @ Ws[t]ᵀ`` (Ws[t] a
