@@ -41,7 +41,8 @@ def _spd(n: int, seed: int):
 @pytest.mark.parametrize("cols", [[0, 1, 2], [0, 2], [1]])
 def test_member_residuals_are_the_dense_ones(kernels, cols):
     """‖(A + δ I) y − b‖ and ‖y‖ with y = ±(x − base) / scale, for 21 members (more than one block of
-    the compiled kernel), against a dense product; a non-finite position gives a non-finite residual."""
+    the compiled kernel), against a dense product; a non-finite position gives a non-finite residual; the
+    same with spare buffers of garbage for the scratch (the compiled kernel takes the first with room)."""
     rng = np.random.default_rng(5)
     n, k = 300, 23
     A = _spd(n, 1)
@@ -54,9 +55,15 @@ def test_member_residuals_are_the_dense_ones(kernels, cols):
     deltas = rng.uniform(0.0, 3.0, members.size)
     R0 = rng.normal(size=(cols.size, n))
     out[members[4], 17, cols[-1]] = np.nan
+    spare = [np.full(10, np.nan), np.full(3 * 16 * n + 7, np.nan)]     # (too small; room for the scratch)
     with accel.use(kernels=kernels):
         kern = accel.kernels("flow", n)
         res, ynorm = kern.member_residuals(A, R0, out, base, inv_scale, cols, members, signs, deltas)
+        res2, ynorm2 = kern.member_residuals(A, R0, out, base, inv_scale, cols, members, signs, deltas, spare)
+    assert np.array_equal(res, res2, equal_nan=True) and np.array_equal(ynorm, ynorm2, equal_nan=True)
+    assert np.isnan(spare[0]).all()
+    if kernels == "force" and accel.numba_available():
+        assert not np.isnan(spare[1][:3 * 16 * n]).all()                # the compiled check's scratch
     D = A.toarray()
     for q, m in enumerate(members):
         for t, j in enumerate(cols):
@@ -201,9 +208,17 @@ def test_members_outside_the_shared_solve_survive_the_result_used_as_its_scratch
         return buf
 
     monkeypatch.setattr(paths.MemberSink, "scratch", garbage)
+    check, handed = paths.check_members, []
+
+    def spy(*args):
+        handed.append(args[-1])
+        return check(*args)
+
+    monkeypatch.setattr(paths, "check_members", spy)
     with accel.use(kernels=kernels):
         fam = sf.family(mesh, lams)
         assert used, "the shared solve did not use the result as its scratch"
+        assert len(handed) == 1 and len(handed[0]) == 3      # the seed's block, three slabs, for the check
         V = mesh.vertices
         for m in np.flatnonzero(lams == 0.0):
             assert np.array_equal(fam[m], V)

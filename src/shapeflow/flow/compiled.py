@@ -11,6 +11,7 @@ import numpy as np
 from numba import get_num_threads, njit, prange
 
 from ..linalg.compiled import int32_csr
+from ..linalg.spare import Spare
 from .kernels import FlowKernels, no_coupling
 
 
@@ -135,12 +136,13 @@ RESIDUAL_MEMBERS = 16
 ROWS = 2048
 
 
-def member_residuals(indptr, indices, data, R0, out, base, inv_scale, cols, members, signs, deltas):
+def member_residuals(indptr, indices, data, R0, out, base, inv_scale, cols, members, signs, deltas, spare=()):
     """``FlowKernels.member_residuals`` compiled: per block of :data:`RESIDUAL_MEMBERS` members, their
     displacements in one (n, 3 × block) array, then one pass over the matrix for all of them.  The
     rows are shared out between numba's threads for the call (``accel.use(threads=…)``, applied by
     ``family()``) by blocks of :data:`ROWS` rows, whose partial sums are added in block order, so the
-    result has the same bits on any number of threads."""
+    result has the same bits on any number of threads.  The displacements' array is taken from ``spare``
+    (flat float64 buffers free for scratch, :class:`~shapeflow.linalg.spare.Spare`) where one has room."""
     c, n = cols.size, base.shape[0]
     cols3 = np.empty(3, np.int64)
     cols3[:] = cols[0]
@@ -152,7 +154,7 @@ def member_residuals(indptr, indices, data, R0, out, base, inv_scale, cols, memb
     deltas = np.asarray(deltas, np.float64)
     nb = (n + ROWS - 1) // ROWS
     q = min(RESIDUAL_MEMBERS, members.size)
-    Y = np.empty((n, 3 * q))
+    Y = Spare(spare).take(n, 3 * q)
     part_r = np.empty((nb, 3 * q))
     part_y = np.empty((nb, 3 * q))
     res = np.empty((members.size, c))
@@ -457,13 +459,14 @@ class FlowNumba(FlowKernels):
             return super().step_result(X, V, factor, flip, axes, out)
         return step_result(X, V, factor, flip, axes, out)
 
-    def member_residuals(self, As, R0, out, base, inv_scale, cols, members, signs, deltas):
+    def member_residuals(self, As, R0, out, base, inv_scale, cols, members, signs, deltas, spare=()):
         if not (getattr(As, "format", None) == "csr" and int32_csr(As) and out.dtype == base.dtype == np.float64
                 and out.ndim == 3 and out.shape[2] == 3 and base.shape[1] == 3 and out.flags.c_contiguous
                 and 1 <= cols.size <= 3):
             return super().member_residuals(As, R0, out, base, inv_scale, cols, members, signs, deltas)
         return member_residuals(As.indptr, As.indices, np.ascontiguousarray(As.data, dtype=np.float64), R0, out,
-                                base, np.ascontiguousarray(inv_scale, dtype=np.float64), cols, members, signs, deltas)
+                                base, np.ascontiguousarray(inv_scale, dtype=np.float64), cols, members, signs, deltas,
+                                spare)
 
     def scatter_members(self, out, base, cols, i0, rows, members, shift_of, signs):
         if not (out.dtype == rows.dtype == base.dtype == np.float64 and out.ndim == 3 and rows.ndim == 3

@@ -171,7 +171,8 @@ def shared_solve(flow_solver: FlowSolver, operator, plan: SharedPlan, lams: np.n
             report.notes.append(f"{bad.size} member(s) did not converge in {plan.maxiter} shared iterations "
                                 "and were solved separately")
         checked = np.flatnonzero(solved & ok[np.maximum(plan.member_shift, 0)])
-        wrong = check_members(out, base, lams, ax, plan, system, checked, flow_solver.rtol)
+        wrong = check_members(out, base, lams, ax, plan, system, checked, flow_solver.rtol, sink.buffers)
+        sink.buffers = []
         if wrong.size:
             report.fallback_members = sorted(set(report.fallback_members) | {int(m) for m in wrong})
             msg = (f"{wrong.size} member(s) of the shared solve missed rtol={flow_solver.rtol:g} in their true "
@@ -201,6 +202,7 @@ class MemberSink:
         self.cols = np.flatnonzero(ax)
         self.plus = lams >= 0
         self.filled = np.zeros(lams.size, bool)
+        self.buffers = []
 
     def __call__(self, shifts, rows):
         out, cols, plus = self.out, self.cols, self.plus
@@ -221,6 +223,10 @@ class MemberSink:
         or ``__call__`` writes the members (``shared_solve`` writes every other member afterwards)."""
         flat = self.out.reshape(-1)
         return flat[:size] if size <= flat.size and not self.filled.any() else None
+
+    def spare(self, buffers: list) -> None:
+        """Keep the solve's buffers it no longer needs (their pages touched) for the true-residual check."""
+        self.buffers = buffers
 
     def factors(self, lefts: list, Ws: list) -> None:
         """Every shift's solution from its low-rank factors: column t is ``lefts[t] @ Ws[t]ᵀ`` (Ws[t] a
@@ -255,13 +261,14 @@ def run_shared(flow_solver: FlowSolver, operator, plan: SharedPlan, X: np.ndarra
 
 
 def check_members(out: np.ndarray, base: np.ndarray, lams: np.ndarray, ax: np.ndarray, plan: SharedPlan,
-                  system, members: np.ndarray, rtol: float) -> np.ndarray:
+                  system, members: np.ndarray, rtol: float, spare: list = ()) -> np.ndarray:
     """The listed members whose true residual misses the tolerance.
 
     For each, the scaled system ``(σ I + M) Y = b`` of the shared solve (``system`` = ``(As, R0)``
     from :func:`run_shared`: As = σ_seed I + M and R0 = b in the mesh's order, columns of the enabled
     axes) is evaluated at ``Y = C_1^{1/2} Δ`` with Δ = ±(member − base) read back from ``out``
     (the flow kernel family's ``member_residuals``).
+    ``spare``: flat float64 buffers free for the kernel's scratch.
     A column passes when its residual is at most
     :data:`~shapeflow.linalg.multishift.TRUE_RESIDUAL_FACTOR` × (``rtol ‖b‖`` + what rounding the
     positions alone leaves, ε (‖|As|‖∞ + δ)(‖base/S‖ + ‖Y‖)); a non-finite one fails.
@@ -280,7 +287,7 @@ def check_members(out: np.ndarray, base: np.ndarray, lams: np.ndarray, ax: np.nd
     tol = TRUE_RESIDUAL_FACTOR * rtol * np.sqrt(np.einsum("ji,ji->j", R0, R0))          # (c,)
     scaled_base = base[:, cols] * inv_scale[:, None]
     base_size = np.sqrt(np.einsum("ij,ij->j", scaled_base, scaled_base))
-    res, ynorm = kern.member_residuals(As, R0, out, base, inv_scale, cols, members, signs, deltas)
+    res, ynorm = kern.member_residuals(As, R0, out, base, inv_scale, cols, members, signs, deltas, spare)
     floor = TRUE_RESIDUAL_FACTOR * eps * (norm_a + deltas)[:, None] * (base_size + ynorm)
     return members[~(res <= tol + floor).all(axis=1)]
 

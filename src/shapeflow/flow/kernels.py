@@ -104,7 +104,8 @@ class FlowKernels(Family):
         return n_bad
 
     def member_residuals(self, As, R0: np.ndarray, out: np.ndarray, base: np.ndarray, inv_scale: np.ndarray,
-                         cols: np.ndarray, members: np.ndarray, signs: np.ndarray, deltas: np.ndarray):
+                         cols: np.ndarray, members: np.ndarray, signs: np.ndarray, deltas: np.ndarray,
+                         spare: list = ()):
         """True residuals of a family's members in the shared solve's scaled system: ``(res, ynorm)``,
         both (members, c) with c = ``cols.size``.
 
@@ -112,7 +113,8 @@ class FlowKernels(Family):
         ``inv_scale`` (its displacement Δ read back from the positions, times C_1^{1/2}), ``ynorm`` = ‖y‖ and
         ``res`` = ‖(As + ``deltas[q]`` I) y − R0[t]‖; ``As`` (n, n) CSR and ``R0`` (c, n) in the mesh's order,
         ``base`` (n, 3).  A non-finite position gives a non-finite residual.  Blocks of
-        :data:`MEMBER_BLOCK` members: one sparse product per block (``shifted_residuals``).
+        :data:`MEMBER_BLOCK` members: one sparse product per block (``shifted_residuals``).  ``spare``: flat
+        float64 buffers the compiled kernel takes its scratch from (:class:`~shapeflow.linalg.spare.Spare`).
         """
         from ..linalg.multishift import shifted_residuals
 

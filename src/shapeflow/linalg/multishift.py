@@ -13,6 +13,7 @@ from .. import accel, params
 from ..errors import ParameterError
 from .blas import SingleThreadBLAS
 from .shift_polynomial import SeedPolynomial
+from .spare import factor_memory
 from .spd import DEFAULT_RTOL
 
 __all__ = ["BLOCK_BYTES", "RANK_TOL", "TRUE_RESIDUAL_FACTOR", "MultiShiftResult", "multishift_cg",
@@ -99,7 +100,9 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
         pieces side by side, transformed by ``post``).  Such an ``emit`` may also have a
         ``scratch(size)`` method giving a flat float64 buffer of at least ``size`` values (or None)
         that is free until ``emit.factors`` is called: with a polynomial preconditioner the y's
-        factors are formed there (memory whose pages the receiver will touch anyway).
+        factors are formed there (memory whose pages the receiver will touch anyway); and a
+        ``spare(buffers)`` method, handed afterwards the solve's flat buffers it no longer needs
+        (their pages touched already) for the receiver's own scratch.
     post : ``(scale, take)``, either may be None: every solution column x is returned (or
         emitted) as ``(scale * x)[take]`` (applied to the low-rank factor, before the rows are formed).
     degree : a polynomial preconditioner of this degree that keeps the systems shifts of one
@@ -274,7 +277,6 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
         poly.extend(lefts, W, pis, spare, post)         # the pieces transformed by post
         for t in range(len(full)):
             X[t] = poly.recover(X[t], pis)
-    del spare
     for j in range(c):
         if factors[j] is None or poly is not None:
             continue
@@ -284,6 +286,8 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
         W[j] = (P if take is None else P[take],)
     if all(f is not None for f in factors) and hasattr(emit, "factors"):
         emit.factors(lefts, W)                          # the receiver forms the rows itself
+        if hasattr(emit, "spare"):
+            emit.spare(spare)                           # (memory in use no longer, its pages touched)
         return nblocks, ranks
     for j in range(c):
         if factors[j] is not None:
@@ -320,24 +324,6 @@ def padded_factors(left: np.ndarray, right: np.ndarray) -> tuple:
         return left, right
     return (np.concatenate([left, np.zeros((left.shape[0], pad))], axis=1),
             np.concatenate([right, np.zeros((right.shape[0], pad))], axis=1))
-
-
-def factor_memory(n: int, ranks: list, emit) -> list:
-    """Zeroed (n, r) vertex-major arrays for the factors of the given ranks (None: none), in
-    ``emit.scratch``'s buffer where it offers one (see :func:`multishift_cg`), else new."""
-    size = sum(n * r for r in ranks if r is not None)
-    flat = getattr(emit, "scratch", lambda size: None)(size)
-    out, o = [], 0
-    for r in ranks:
-        if r is None:
-            out.append(None)
-        elif flat is not None:
-            out.append(flat[o:o + n * r].reshape(n, r))
-            out[-1].fill(0.0)
-            o += n * r
-        else:
-            out.append(np.zeros((n, r)))
-    return out
 
 
 def gemm(A: np.ndarray, B: np.ndarray, out: np.ndarray, accumulate: bool = False, *, trans_a: bool = False,

@@ -25,6 +25,7 @@ import scipy.linalg
 from .. import accel
 from ..errors import ParameterError
 from .blas import SingleThreadBLAS
+from .spare import Spare
 
 if TYPE_CHECKING:
     from .multishift import ShiftedSystems
@@ -166,15 +167,7 @@ class SeedPolynomial:
         float64 buffers no longer needed, such as the slots of the seed's block of residuals that the
         solve wrote, whose pages are in memory already) while it lasts."""
         scale, take = post if post is not None else (None, None)
-        free = [[b, 0] for b in (spare or [])]
-
-        def memory(rows, width):                    # first fit in ``spare``, else new
-            for slot in free:
-                b, o = slot
-                if o + rows * width <= b.size:
-                    slot[1] = o + rows * width
-                    return b[o:o + rows * width].reshape(rows, width)
-            return np.empty((rows, width))
+        memory = Spare(spare).take
 
         d = self.degree
         for j in range(len(Ws)):
