@@ -199,3 +199,35 @@ def test_forked_and_spawned_children_run_families():
         else:
             assert backend == "numba" and not log
             assert all(np.array_equal(r, compiled) for r in runs)
+
+
+# --------------------------------------------------------------------------
+# the true-residual check behind the shared solve's factor
+# --------------------------------------------------------------------------
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+@pytest.mark.parametrize("scale", [1.5, 1e100, 1e200])
+def test_a_wrong_member_from_the_factor_is_solved_again(monkeypatch, kernels, scale):
+    # one shift's row of the low-rank factor made wrong (finite): its members fail the true-residual
+    # check and are solved as flow() does, however large the wrong values (1e200 × a displacement:
+    # its squares overflow, which made the check's rounding allowance infinite and let it pass)
+    from shapeflow.flow import family_paths
+
+    mesh = cube_sphere(20, mix=0.3)
+    lams = FIGURE1
+    real = family_paths.MemberSink.factors
+    hit = []
+
+    def factors(self, lefts, Ws):
+        for L in lefts:
+            L[5] *= scale                   # shift 5 (in the solve's order), every column
+        hit.extend(int(m) for m in self.member_of_shift[5])
+        return real(self, lefts, Ws)
+
+    monkeypatch.setattr(family_paths.MemberSink, "factors", factors)
+    with accel.use(kernels=kernels), pytest.warns(sf.errors.SolverWarning, match="true"):
+        shapes, report = sf.family(mesh, lams, return_report=True)
+    assert hit and set(hit) <= set(report.fallback_members)
+    refs = {lam: sf.flow(mesh, lam).vertices for lam in set(lams)}
+    worst = max(float(np.abs(shapes[m] - refs[lam]).max()) for m, lam in enumerate(lams))
+    assert worst <= TOL * mesh.diagonal, worst

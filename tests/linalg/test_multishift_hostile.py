@@ -314,3 +314,47 @@ def test_multishift_cg_called_directly_takes_the_callers_threads(monkeypatch, de
             multishift_cg(A, B, np.geomspace(0.01, 4.0, 12), rtol=1e-8, degree=degree)
         assert seen and set(seen) == {threads}
         assert numba.get_num_threads() == before
+
+
+def random_spd_csr(n: int, seed: int) -> sp.csr_matrix:
+    """A symmetric int32 CSR matrix of n rows with 1 to ~20 entries a row and random values."""
+    rng = np.random.default_rng(seed)
+    rows = np.repeat(np.arange(n), rng.integers(0, 10, n))
+    cols = rng.integers(0, n, rows.size)
+    M = sp.coo_matrix((rng.standard_normal(rows.size), (rows, cols)), shape=(n, n))
+    A = (M + M.T + sp.diags(rng.uniform(1.0, 2.0, n))).tocsr()
+    A.sum_duplicates()
+    A.indices, A.indptr = A.indices.astype(np.int32), A.indptr.astype(np.int32)
+    return A
+
+
+@needs_numba
+@pytest.mark.parametrize("n", [5, 4095, 4097, 8193, 12289])
+def test_the_seeds_fused_passes_give_the_same_bits_on_any_number_of_threads(n):
+    # the seed's kernels fuse multiply-adds (fastmath "contract"): their parallel build (2–4 threads, or
+    # one when the rows are fewer than a block) and the one-thread loops must fuse the same operations;
+    # five replayed iterations (products, residuals, directions; with and without the polynomial) on
+    # random rows of 1 to ~20 entries and random values, so that any difference in rounding shows
+    import numba
+
+    import shapeflow.linalg.compiled_shift as cs
+
+    A = random_spd_csr(n, n)
+    rng = np.random.default_rng(1)
+    X = rng.standard_normal((n, 3))
+    sa, sb = rng.uniform(0.01, 0.1, (6, 3)), rng.uniform(0.1, 0.5, (6, 3))
+    before = numba.get_num_threads()
+    runs = []
+    try:
+        for coef in (np.zeros(0), rng.standard_normal(3)):      # A₀ alone, and a degree-2 polynomial of it
+            for nt in (1, 2, 3, 4):
+                numba.set_num_threads(min(nt, numba.config.NUMBA_NUM_THREADS))
+                P, R, AP, T, U, Rb = X.copy(), X[::-1].copy(), *(np.empty((n, 3)) for _ in range(3)), \
+                    np.empty((3, 6, n))
+                cs.replay(A.indptr, A.indices, A.data, 0.37, coef, P, AP, T, U, R, Rb, sa, sb, 0, 6, nt)
+                runs.append((nt, [P, R, AP, Rb]))
+    finally:
+        numba.set_num_threads(before)
+    for i, (nt, run) in enumerate(runs):
+        first = runs[i - i % 4][1]
+        assert all(np.array_equal(a, b) for a, b in zip(first, run, strict=True)), nt

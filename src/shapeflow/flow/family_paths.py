@@ -271,7 +271,9 @@ def check_members(out: np.ndarray, base: np.ndarray, lams: np.ndarray, ax: np.nd
     ``spare``: flat float64 buffers free for the kernel's scratch.
     A column passes when its residual is at most
     :data:`~shapeflow.linalg.multishift.TRUE_RESIDUAL_FACTOR` × (``rtol ‖b‖`` + what rounding the
-    positions alone leaves, ε (‖|As|‖∞ + δ)(‖base/S‖ + ‖Y‖)); a non-finite one fails.
+    positions alone leaves, ε (‖|As|‖∞ + δ)(‖base/S‖ + ‖Y‖)); a non-finite one fails, and so does one
+    whose allowance is not finite (‖Y‖ beyond ~1e154, where its squares overflow and the allowance
+    would pass any residual: such a member is solved again as ``flow()`` does).
     """
     cols = np.flatnonzero(ax)
     if members.size == 0 or cols.size == 0:
@@ -289,7 +291,7 @@ def check_members(out: np.ndarray, base: np.ndarray, lams: np.ndarray, ax: np.nd
     base_size = np.sqrt(np.einsum("ij,ij->j", scaled_base, scaled_base))
     res, ynorm = kern.member_residuals(As, R0, out, base, inv_scale, cols, members, signs, deltas, spare)
     floor = TRUE_RESIDUAL_FACTOR * eps * (norm_a + deltas)[:, None] * (base_size + ynorm)
-    return members[~(res <= tol + floor).all(axis=1)]
+    return members[~((res <= tol + floor) & np.isfinite(floor)).all(axis=1)]
 
 
 def block_bytes(k: int, n: int) -> int:
