@@ -30,10 +30,12 @@ def test_factor_memory_is_zeroed_in_the_receivers_scratch_or_new():
         def scratch(self, size):
             return buf[:size] if size <= buf.size else None
 
-    got = factor_memory(10, [3, None, 4], Receiver())
-    assert got[1] is None and [g.shape for g in (got[0], got[2])] == [(10, 3), (10, 4)]
+    got, extra = factor_memory(10, [3, None, 4], Receiver())
+    assert got[1] is None and [g.shape for g in (got[0], got[2])] == [(10, 3), (10, 4)] and extra is None
     assert all(np.shares_memory(g, buf) and not g.any() for g in (got[0], got[2]))
     assert np.isnan(buf[70:]).all()
-    new = factor_memory(10, [6, 5], Receiver())     # 110 values: the scratch is too small
-    assert all(not np.shares_memory(g, buf) and not g.any() for g in new)
-    assert [g.shape for g in factor_memory(4, [2], object())] == [(4, 2)]
+    got, extra = factor_memory(10, [3, 4], Receiver(), extra=25)      # the extra values right after
+    assert extra.shape == (25,) and np.shares_memory(extra, buf[70:95]) and np.isnan(buf[95:]).all()
+    new, extra = factor_memory(10, [6, 5], Receiver(), extra=5)       # 115 values: the scratch is too small
+    assert all(not np.shares_memory(g, buf) and not g.any() for g in new) and extra.shape == (5,)
+    assert [g.shape for g in factor_memory(4, [2], object())[0]] == [(4, 2)]

@@ -252,8 +252,9 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
     if full:
         C = member_coefficients(rec.ra, rec.rb, rec.rz, m, stop)
         Cp = {j: np.ascontiguousarray(C[j][inv]) for j in full}
-    W = factor_memory(n, [None if f is None else f[0].shape[1] for f in factors],
-                      emit if poly is not None and all(f is not None for f in factors) else None)
+    widths = [None if f is None else f[0].shape[1] for f in factors]
+    W, zbuf = factor_memory(n, widths, emit if poly is not None and all(f is not None for f in factors) else None,
+                            n * max((w for w in widths if w is not None), default=0) if poly is not None else 0)
     nblocks = -(-m // cap) if m else 0
     for b in range(nblocks):
         t0, t1 = b * cap, min(m, (b + 1) * cap)
@@ -274,7 +275,7 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
     W = [None if w is None else (w,) for w in W]       # the factor's pieces, side by side
     if poly is not None:
         pis = poly.pis[inv]
-        poly.extend(lefts, W, pis, spare, post)         # the pieces transformed by post
+        poly.extend(lefts, W, pis, spare, post, zbuf)   # the pieces transformed by post
         for t in range(len(full)):
             X[t] = poly.recover(X[t], pis)
     for j in range(c):

@@ -158,16 +158,20 @@ class SeedPolynomial:
         return X
 
     def extend(self, lefts: list, Ws: list, pis: np.ndarray, spare: list | None = None,
-               post: tuple | None = None) -> None:
+               post: tuple | None = None, scratch: np.ndarray | None = None) -> None:
         """The low-rank factors of the solutions from those of the y's, in place for each column j with
         factors (``lefts[j]`` (k, r), ``Ws[j]`` a 1-tuple of (n, r) vertex-major; None: skipped):
         ``[pis[:, 0] left, …, pis[:, d] left]`` and the pieces ``(W, A₀ W, …, A₀^d W)`` transformed by
         ``post`` = (scale, take) (the linalg kernel family's ``shifted_powers``), side by side in one
         (·, (d + 1) r) array, the new ``Ws[j]`` = (that array,).  They are written into ``spare`` (flat
         float64 buffers no longer needed, such as the slots of the seed's block of residuals that the
-        solve wrote, whose pages are in memory already) while it lasts."""
+        solve wrote, whose pages are in memory already) while it lasts; the powers' scratch (n, r), one
+        for all columns, in ``scratch`` (a flat float64 buffer) where it has room, else there too."""
         scale, take = post if post is not None else (None, None)
         memory = Spare(spare).take
+        scratch = np.zeros(0) if scratch is None else scratch
+        if any(W is not None and W[0].size > scratch.size for W in Ws):
+            scratch = memory(1, max(W[0].size for W in Ws if W is not None)).reshape(-1)
 
         d = self.degree
         for j in range(len(Ws)):
@@ -176,7 +180,7 @@ class SeedPolynomial:
             (W,) = Ws[j]
             n, r = W.shape
             wide = memory(n if take is None else take.size, (d + 1) * r)     # the pieces side by side
-            mem = [wide[:, i * r:(i + 1) * r] for i in range(d + 1)] + [memory(n, r)]
+            mem = [wide[:, i * r:(i + 1) * r] for i in range(d + 1)] + [scratch[:n * r].reshape(n, r)]
             kern = accel.kernels("linalg", n)
             res = kern.shifted_powers(self.A, self.seed, W, d, mem, take, scale)
             Ws[j] = (wide,) if all(res[i] is mem[i] for i in range(d + 1)) else tuple(res)

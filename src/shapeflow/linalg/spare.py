@@ -31,12 +31,12 @@ class Spare:
         return np.empty((rows, width))
 
 
-def factor_memory(n: int, ranks: list, emit) -> list:
-    """Zeroed (n, r) vertex-major arrays for the factors of the given ranks (None: none), in
-    ``emit.scratch``'s buffer where it offers one (see :func:`~shapeflow.linalg.multishift.multishift_cg`),
-    else new."""
+def factor_memory(n: int, ranks: list, emit, extra: int = 0) -> tuple[list, np.ndarray | None]:
+    """Zeroed (n, r) vertex-major arrays for the factors of the given ranks (None: none), and a flat
+    buffer of ``extra`` values after them (None without ``extra``), in ``emit.scratch``'s buffer where it
+    offers one (see :func:`~shapeflow.linalg.multishift.multishift_cg`), else new."""
     size = sum(n * r for r in ranks if r is not None)
-    flat = getattr(emit, "scratch", lambda size: None)(size)
+    flat = getattr(emit, "scratch", lambda size: None)(size + extra)
     spare = Spare([flat])
     out = []
     for r in ranks:
@@ -45,4 +45,4 @@ def factor_memory(n: int, ranks: list, emit) -> list:
             continue
         out.append(spare.take(n, r))
         out[-1].fill(0.0)
-    return out
+    return out, (spare.take(1, extra).reshape(-1) if extra else None)
