@@ -82,8 +82,8 @@ FIGURES: tuple[Figure, ...] = (
     Figure(README, "| flow on 937,730 vertices |", "0.89 s, 1.16 GB peak", (FLOW_1M,)),
     Figure(README, "| a 50M-vertex triangle scan (binary PLY)", "20 s + 43 s + 11 s, 20.1 GB peak", SCAN["50M"]),
     Figure(README, "| family of 48 shapes, 46,850 vertices |",
-           "0.64 s; Suzanne ×3 1.7–1.8× default kernels, compiled 3.1× (one thread), 2.7× (default threads); "
-           "Suzanne ×4 2.1–2.2× default threads, 3.8× one thread; 48 × flow() 15.3 s; 48 × Blender ≈ 123 s",
+           "0.58 s; Suzanne ×3 1.7× default kernels, compiled 2.8× (one thread), 2.1× (default threads); "
+           "Suzanne ×4 1.8× default threads, 2.6–2.7× one thread; 48 × flow() 14.2 s; 48 × Blender ≈ 123 s",
            (*FAMILY, *RATIO, *RATIO_126K, FAMILY_BLENDER)),
     Figure(README, "| Catmull–Clark level 2, 40K → 640K vertices |", "369 ms; Blender's Subdivision Surface 242 ms",
            (TORUS_SUB, TORUS_BLENDER)),
@@ -123,11 +123,11 @@ FIGURES: tuple[Figure, ...] = (
     Figure(PERF, "| Catmull–Clark level 2, 40,000 → 640,000 vertices — `bench_subdivision.py` |",
            "369 ms; one S @ V frame 20 ms; Blender 242 ms", (TORUS_SUB, TORUS_SV, TORUS_BLENDER)),
     Figure(PERF, "| family of 48 shapes (figure 1's λ = 0, −5, …, −235), 46,850 vertices — `bench_family.py` |",
-           "642 ms fresh, 588 ms warm; 48 × flow() 15.3 s (26× warm); 48 × Blender ≈ 123 s (from 4)",
+           "575 ms fresh, 535 ms warm; 48 × flow() 14.2 s (26.5× warm); 48 × Blender ≈ 123 s (from 4)",
            (*FAMILY, FAMILY_BLENDER)),
     Figure(PERF, "| family of 48 shapes (λ = 0 … −235) against one `flow()` at λ = −235",
-           "×3 forced: 234 / 77 ms 3.06× (one thread), 201 / 76 ms 2.67× (default threads); auto: 366 / 219 ms "
-           "1.71×, 382 / 213 ms 1.76×; ×4: 2.09–2.22× (default threads), 3.82–3.84× (one thread); member vs "
+           "×3 forced: 200 / 72.5 ms 2.77× (one thread), 154 / 73 ms 2.09× (default threads); auto: 339 / 208 ms "
+           "1.66×, 342 / 210 ms 1.66×; ×4: 1.77–1.78× (default threads), 2.58–2.73× (one thread); member vs "
            "flow() 2.0e-10 (1.8e-10 on NumPy, 8.1e-11 on ×4)",
            (*RATIO, *RATIO_126K)),
     Figure(PERF, "| brush dab with 2,600 vertices inside, meshes of 11K–187K vertices — `bench_brush.py` |",
@@ -141,12 +141,12 @@ FIGURES: tuple[Figure, ...] = (
            "0.30–0.34 s (re-run 0.15 s); Blender's modifier 8.6 s", ADDON),
     Figure(PERF, "ms idle (default against one thread",
            "90.8 / 89.6 ms idle; two busy processes 125 / 131 ms", (CONTENTION,)),
-    Figure(PERF, "it costs 1.12× the family with the compiled kernels forced",
-           "1.12× forced, 1.17× NumPy/SciPy (per-round medians); 15 rounds, load 1.2",
+    Figure(PERF, "it costs 1.36× the family with the compiled",
+           "1.36× forced, 1.19× NumPy/SciPy (per-round medians); 15 rounds, load 1.0",
            (Pick("family-check-cost", r"before:|after:|^  kernels"),)),
-    Figure(PERF, "In the run of 2026-11-26 with the threads (table above)",
-           "69 iterations of 3 products against 95; 3.06× / 2.67× compiled on ×3 (one / default threads), "
-           "2.09–2.22× / 3.82–3.84× on ×4",
+    Figure(PERF, "do not. In the run of the table above",
+           "69 iterations of 3 products against 95; 2.77× / 2.09× compiled on ×3 (one / default threads), "
+           "2.73× / 1.78× on ×4 (2.58× / 1.77× as by default)",
            (*RATIO, *RATIO_126K)),
     Figure(PERF, "| dab, wall (p10–p90) |", "3.18 (2.57–7.60) / 3.12 (2.58–10.19) ms, 0.98",
            (BRUSH_SIZES,)),

@@ -60,8 +60,8 @@ Rather than two axpy passes per member per iteration (48 members × 3 columns
 block — usually one in all (:func:`multishift_cg`); the per-member
 recurrences only touch coefficients.  Measured on the 46,850-vertex figure-1
 family (``benchmarks/bench_family.py``, 2-core machine, load ~1, 2026-11-26): the
-48 members in 0.59–0.64 s (against the hardest member's flow() alone: docs/performance.md,
-"The family's shared solve"), against 15.3 s for 48 flow() calls and ~123 s for 48 Blender
+48 members in 0.53–0.58 s (against the hardest member's flow() alone: docs/performance.md,
+"The family's shared solve"), against 14.2 s for 48 flow() calls and ~123 s for 48 Blender
 evaluations.  The compiled seed, the factor's powers and the check run on the call's threads
 (``accel.use(threads=…)``); the result has the same bits on any number of threads.
 
