@@ -7,20 +7,21 @@ With a polynomial preconditioner (:mod:`~shapeflow.linalg.shift_polynomial`) the
 The NumPy twin is :class:`~shapeflow.linalg.multishift.NumpySeed`, the linalg family's reference
 (same formulas in the same order; the sums differ in rounding only); ``tests/linalg/test_multishift.py``
 compares the two.  Up to three columns, stored (n, 3) as the flow's CG does (an unused column is
-zero and never iterates).  An iteration is three passes over the rows (the product with its dots,
-the residual update with its dots and its copy into the block, the direction update) and
-O(shifts × block) scalar work; the block's GEMMs stay in NumPy (BLAS).
+zero and never iterates).  An iteration is d + 3 passes over the rows (the product's d + 1, the
+last with its dots; the residual update with its dots and its copy into the block; the direction
+update; d = 0 without the polynomial) and O(shifts × block) scalar work; the block's GEMMs stay in NumPy (BLAS).
 
 Each pass over the rows uses numba's threads for the call: ``accel.use(threads=1)`` (or 2, …;
 ``"auto"``, the default, takes the cores free when the call starts, ``NUMBA_NUM_THREADS`` caps it),
 applied by the heavy entry points (``family()``, ``multishift_cg``).  The rows are shared out by
 blocks, whose sums are added in block order, so the result has the same bits on any number of
 threads (``tests/linalg/test_multishift.py``).  Unlike the flow's symmetric Gauss–Seidel sweeps, which
-are sequential, the seed's products split: figure 1's 48 members on Suzanne ×3 take ~0.7–0.75× their
+are sequential, the seed's products split: 48 members (λ = 0 … −235) on Suzanne ×3 take ~0.75× their
 one-thread time when both cores are free (docs/performance.md).
 The seed's kernels are compiled with ``fastmath={"contract"}`` alone: a multiply and the add that
-follows become one fused multiply-add (a product of Suzanne ×3's matrix with three columns 0.40 →
-0.34 ms, the first pass ~109 → ~96 ms on one thread, 2026-11-26), and nothing is reassociated, so the
+follows become one fused multiply-add (a product of Suzanne ×3's matrix with three columns 0.34 ms
+against 0.40 ms without, the seed's iterations ~96 against ~109 ms on one thread, 2026-11-26), and
+nothing is reassociated, so the
 sums keep their order and the same bits on any number of threads (their parallel and one-thread builds
 fuse the same operations: ``tests/linalg/test_multishift.py``).  :func:`rows_product` is compiled without
 it: its parallel build and its sequential twin fused differently (measured), and it gained nothing.

@@ -103,9 +103,10 @@ class LinalgKernels(Family):
         """``[Y, A₀ Y, …, A₀^degree Y]`` for ``Y`` (n, r) and A₀ = A + seed I (the solutions of
         :func:`~shapeflow.linalg.multishift.multishift_cg`'s polynomial preconditioner), each row s times
         ``scale[s]`` and the rows then taken by ``take`` (None: as they are): ``(scale · power)[take]``,
-        each (·, r) C-contiguous, ``Y`` itself left as it is.  ``out``: memory to use, up to
-        ``degree + 2`` C-contiguous arrays of Y's shape (the last one scratch); what the list lacks is
-        allocated."""
+        each (·, r), ``Y`` itself left as it is.  ``out``: memory to use, up to ``degree + 2`` arrays
+        (the powers' of their shape, column slices of one wider array allowed; the last one, scratch,
+        C-contiguous of Y's shape); a power is returned in its ``out`` array where the shapes agree;
+        what the list lacks is allocated."""
         res = [np.ascontiguousarray(Y)]
         for _ in range(degree):
             res.append(np.ascontiguousarray(np.asarray(A @ res[-1]) + seed * res[-1]))

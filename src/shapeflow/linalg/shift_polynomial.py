@@ -163,7 +163,8 @@ class SeedPolynomial:
         factors (``lefts[j]`` (k, r), ``Ws[j]`` a 1-tuple of (n, r) vertex-major; None: skipped):
         ``[pis[:, 0] left, …, pis[:, d] left]`` and the pieces ``(W, A₀ W, …, A₀^d W)`` transformed by
         ``post`` = (scale, take) (the linalg kernel family's ``shifted_powers``), side by side in one
-        (·, (d + 1) r) array, the new ``Ws[j]`` = (that array,).  They are written into ``spare`` (flat
+        (·, (d + 1) r) array, the new ``Ws[j]`` = (that array,), or the d + 1 pieces as a tuple where
+        the kernel could not write into it.  They are written into ``spare`` (flat
         float64 buffers no longer needed, such as the slots of the seed's block of residuals that the
         solve wrote, whose pages are in memory already) while it lasts; the powers' scratch (n, r), one
         for all columns, in ``scratch`` (a flat float64 buffer) where it has room, else there too."""
