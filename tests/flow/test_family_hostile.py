@@ -231,3 +231,40 @@ def test_a_wrong_member_from_the_factor_is_solved_again(monkeypatch, kernels, sc
     refs = {lam: sf.flow(mesh, lam).vertices for lam in set(lams)}
     worst = max(float(np.abs(shapes[m] - refs[lam]).max()) for m, lam in enumerate(lams))
     assert worst <= TOL * mesh.diagonal, worst
+
+
+@needs_numba
+@pytest.mark.parametrize("axes", [(True, True, True), (False, True, False)], ids=["xyz", "y"])
+def test_the_true_residual_check_in_the_seeds_block_filled_with_nan(monkeypatch, axes):
+    # The check's scratch (n × 3 × RESIDUAL_MEMBERS values) fits in the seed's block once the shared
+    # solve ran RESIDUAL_MEMBERS iterations or more: made 2 here, so that it does on a test-sized mesh.
+    # The buffers handed to the family filled with NaN on arrival (they are free by then): the check
+    # takes its scratch from them, passes every member, and the family equals flow() and gives the same
+    # bits on 1 and 2 threads.
+    from shapeflow.flow import compiled, family_paths
+
+    mesh = cube_sphere(16, mix=0.3)
+    monkeypatch.setattr(compiled, "RESIDUAL_MEMBERS", 2)
+    handed, taken = [], []
+
+    def spare(self, buffers):
+        for b in buffers:
+            b[:] = np.nan
+        handed.extend(buffers)
+        self.buffers = buffers
+
+    class Spy(compiled.Spare):
+        def take(self, rows, width):
+            taken.append(super().take(rows, width))
+            return taken[-1]
+
+    monkeypatch.setattr(family_paths.MemberSink, "spare", spare)
+    monkeypatch.setattr(compiled, "Spare", Spy)
+    one, report = family_on(1, mesh, FIGURE1, axes=axes, return_report=True)
+    assert report.fallback_members == [] and len(handed) == sum(axes) and len(taken) == 1
+    assert any(np.shares_memory(taken[0], b) for b in handed)           # (the check's scratch in the block)
+    assert np.array_equal(one, family_on(2, mesh, FIGURE1, axes=axes))
+    with accel.use(kernels="off"):
+        refs = {lam: sf.flow(mesh, lam, axes=axes).vertices for lam in FIGURE1}
+    worst = max(float(np.abs(one[m] - refs[lam]).max()) for m, lam in enumerate(FIGURE1))
+    assert worst <= TOL * mesh.diagonal, worst

@@ -358,3 +358,65 @@ def test_the_seeds_fused_passes_give_the_same_bits_on_any_number_of_threads(n):
     for i, (nt, run) in enumerate(runs):
         first = runs[i - i % 4][1]
         assert all(np.array_equal(a, b) for a, b in zip(first, run, strict=True)), nt
+
+
+# --------------------------------------------------------------------------
+# the memory the solve lends its receiver (emit.scratch) and hands over (emit.spare)
+# --------------------------------------------------------------------------
+
+@pytest.mark.parametrize("kernels", ["off", "force"])
+@pytest.mark.parametrize("degree", [0, 2])
+@pytest.mark.parametrize("columns", [1, 3])
+@pytest.mark.parametrize("block_bytes", [1, 2 ** 27], ids=["replayed", "one-block"])
+@pytest.mark.parametrize("take", [None, "permutation", "repeats"])
+def test_the_receivers_scratch_and_the_spare_buffers_are_free_when_lent(kernels, degree, columns, block_bytes, take):
+    # A receiver that takes the factors owns its scratch once ``factors`` is called and the buffers handed
+    # to ``spare`` once they arrive: both filled with NaN there (as the family writes its members over the
+    # scratch and its true-residual check over the spare buffers), the solutions formed from the factors
+    # are those multishift_cg collects in X; the pieces never share memory, the spare buffers are one per
+    # column, disjoint, and come after the factors.
+    A = grid_laplacian(50)
+    n = A.shape[0]
+    rng = np.random.default_rng(11)
+    B = rng.standard_normal((columns, n))
+    shifts = np.geomspace(0.01, 10, 80)                         # (every column factorised)
+    post = (rng.uniform(0.5, 2.0, n), {None: None, "permutation": rng.permutation(n),
+                                       "repeats": rng.integers(0, n, n + 5)}[take])
+    calls = []
+
+    class Receiver:
+        def __init__(self):
+            self.buf = np.full(shifts.size * n * 3, np.nan)     # the family's (k, n, 3) result
+            self.rows = {}
+
+        def scratch(self, size):
+            calls.append("scratch")
+            return self.buf[:size] if size <= self.buf.size else None
+
+        def factors(self, lefts, Ws):
+            calls.append("factors")
+            self.buf[:] = np.nan
+            pieces = [P for W in Ws for P in W]
+            assert not any(np.shares_memory(P, Q) for i, P in enumerate(pieces) for Q in pieces[i + 1:])
+            self.X = np.stack([lefts[j] @ np.concatenate(Ws[j], axis=1).T for j in range(columns)])
+
+        def spare(self, buffers):
+            calls.append("spare")
+            assert len(buffers) == columns and not any(np.shares_memory(b, self.buf) for b in buffers)
+            assert not any(np.shares_memory(a, b) for i, a in enumerate(buffers) for b in buffers[i + 1:])
+            for b in buffers:
+                b[:] = np.nan
+
+        def __call__(self, idx, rows):
+            for q, i in enumerate(idx):
+                self.rows[int(i)] = rows[:, q].copy()
+
+    with accel.use(kernels=kernels):
+        want = multishift_cg(A, B, shifts, rtol=1e-10, degree=degree, post=post, block_bytes=block_bytes).X
+        rec = Receiver()
+        res = multishift_cg(A, B, shifts, rtol=1e-10, degree=degree, post=post, block_bytes=block_bytes, emit=rec)
+    assert res.converged.all() and min(res.ranks) > 0 and (res.flushes > 1) == (block_bytes == 1)
+    assert calls[-2:] == ["factors", "spare"] and calls.count("factors") == 1
+    got = rec.X if not rec.rows else np.stack([rec.rows[i] for i in range(shifts.size)], axis=1)
+    assert np.isfinite(got).all()
+    assert np.allclose(got, want, rtol=1e-10, atol=1e-12 * np.abs(want).max())
