@@ -219,9 +219,9 @@ class MemberSink:
                         out[m, :, j] -= rows[t, q]
 
     def scratch(self, size: int):
-        """``out`` as a flat buffer of ``size`` values, None if it is smaller or a member is written
-        already: free until :meth:`factors` or ``__call__`` writes the members (``shared_solve`` writes
-        every other member afterwards)."""
+        """``out`` as a flat buffer of ``size`` values (the solve's factor and its powers' scratch), None
+        if it is smaller or a member is written already: free until :meth:`factors` or ``__call__``
+        writes the members (``shared_solve`` writes every other member afterwards)."""
         flat = self.out.reshape(-1)
         return flat[:size] if size <= flat.size and not self.filled.any() else None
 

@@ -102,7 +102,9 @@ def multishift_cg(A, B: np.ndarray, shifts, *, rtol: float = DEFAULT_RTOL, maxit
         that is free until ``emit.factors`` is called: with a polynomial preconditioner the y's
         factors are formed there (memory whose pages the receiver will touch anyway); and a
         ``spare(buffers)`` method, handed afterwards the solve's flat buffers it no longer needs
-        (their pages touched already) for the receiver's own scratch.
+        (their pages touched already) for the receiver's own scratch — the pieces given to
+        ``factors`` live in them, so a receiver must form what it needs from the pieces before it
+        writes into those buffers.
     post : ``(scale, take)``, either may be None: every solution column x is returned (or
         emitted) as ``(scale * x)[take]`` (applied to the low-rank factor, before the rows are formed).
     degree : a polynomial preconditioner of this degree that keeps the systems shifts of one
