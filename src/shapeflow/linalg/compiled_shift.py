@@ -44,12 +44,15 @@ from .multishift import CAPPED, CHECKPOINT, DONE, GROW, PROGRESS, NumpySeed, Rec
 __all__ = ["CompiledSeed", "run", "replay", "shifted_powers", "rows_product", "rows_product_seq", "DONE", "CAPPED",
            "PROGRESS_EVERY"]
 
+#: the seed's kernels' ``fastmath``: multiply-adds fused, nothing reassociated (see the module's docstring)
+FUSED = {"contract"}
+
 #: iterations between two returns to report finished shifts (each return and report costs ~0.1 ms;
 #: the last shifts are reported when the pass ends)
 PROGRESS_EVERY = 8
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, fastmath=FUSED)
 def _product(indptr, indices, data, seed, P, AP, nt):
     """AP = (A + seed I) P for the three columns of P (n, 3); returns pᵀAp per column."""
     return _apply_dot(indptr, indices, data, seed, P, P, AP, nt)
@@ -130,7 +133,7 @@ def _residual_block(R, AP, a0, a1, a2, Rb, slot, c, store, part, b):
     part[b, 2] = s2
 
 
-@njit(parallel=True, cache=True, fastmath={"contract"})
+@njit(parallel=True, cache=True, fastmath=FUSED)
 def _combine_par(indptr, indices, data, seed, X, sx, P, sp_, Y, nt):
     n = indptr.size - 1
     nb = (n + BLOCK - 1) // BLOCK
@@ -141,7 +144,7 @@ def _combine_par(indptr, indices, data, seed, X, sx, P, sp_, Y, nt):
             _combine_row(indptr, indices, data, seed, X, sx, P, sp_, Y, i)
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, fastmath=FUSED)
 def _combine(indptr, indices, data, seed, X, sx, P, sp_, Y, nt):
     """Y = sx (A + seed I) X + sp P (three columns)."""
     if nt > 1:
@@ -151,7 +154,7 @@ def _combine(indptr, indices, data, seed, X, sx, P, sp_, Y, nt):
         _combine_row(indptr, indices, data, seed, X, sx, P, sp_, Y, i)
 
 
-@njit(parallel=True, cache=True, fastmath={"contract"})
+@njit(parallel=True, cache=True, fastmath=FUSED)
 def _apply_dot_par(indptr, indices, data, seed, X, P, AP, part, nt):
     nb = part.shape[0]
     nt = max(1, min(nt, nb))
@@ -160,7 +163,7 @@ def _apply_dot_par(indptr, indices, data, seed, X, P, AP, part, nt):
             _apply_block(indptr, indices, data, seed, X, P, AP, part, b)
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, fastmath=FUSED)
 def _apply_dot(indptr, indices, data, seed, X, P, AP, nt):
     """AP = (A + seed I) X for the three columns of X (n, 3); returns pᵀ(AP) per column, p from P."""
     part = np.zeros(((indptr.size - 1 + BLOCK - 1) // BLOCK, 3))
@@ -172,7 +175,7 @@ def _apply_dot(indptr, indices, data, seed, X, P, AP, nt):
     return sum_blocks(part)
 
 
-@njit(parallel=True, cache=True, fastmath={"contract"})
+@njit(parallel=True, cache=True, fastmath=FUSED)
 def _residual_par(R, AP, alpha, Rb, slot, c, part, nt):
     nb = part.shape[0]
     nt = max(1, min(nt, nb))
@@ -182,7 +185,7 @@ def _residual_par(R, AP, alpha, Rb, slot, c, part, nt):
             _residual_block(R, AP, alpha[0], alpha[1], alpha[2], Rb, slot, c, store, part, b)
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, fastmath=FUSED)
 def _residual(R, AP, alpha, Rb, slot, c, nt):
     """R −= αAP (three columns), its first ``c`` columns copied into ``Rb[:, slot]`` when ``slot`` is
     inside the block; returns rᵀr per column."""
@@ -196,7 +199,7 @@ def _residual(R, AP, alpha, Rb, slot, c, nt):
     return sum_blocks(part)
 
 
-@njit(parallel=True, cache=True, fastmath={"contract"})
+@njit(parallel=True, cache=True, fastmath=FUSED)
 def _direction_par(P, R, beta, nt):
     n = P.shape[0]
     nb = (n + BLOCK - 1) // BLOCK
@@ -207,7 +210,7 @@ def _direction_par(P, R, beta, nt):
             _direction_row(P, R, beta[0], beta[1], beta[2], i)
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, fastmath=FUSED)
 def _direction(P, R, beta, nt):
     """P = R + βP (three columns)."""
     if nt > 1:
@@ -220,7 +223,7 @@ def _direction(P, R, beta, nt):
         _direction_row(P, R, b0, b1, b2, i)
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, fastmath=FUSED)
 def _poly_product(indptr, indices, data, seed, coef, P, AP, T, U, nt):
     """AP = A₀ p(A₀) P (A₀ = A + seed I, p of degree ≥ 1 with monomial coefficients ``coef``) by
     Horner's scheme, as ``NumpySeed.poly_product``: T and U scratch (n, 3); returns pᵀAp per column."""
@@ -234,7 +237,7 @@ def _poly_product(indptr, indices, data, seed, coef, P, AP, T, U, nt):
     return _apply_dot(indptr, indices, data, seed, src, P, AP, nt)
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, fastmath=FUSED)
 def _seed_product(indptr, indices, data, seed, coef, P, AP, T, U, nt):
     """The seed's operator applied to P: A₀ P when ``coef`` is empty, else :func:`_poly_product`."""
     if coef.size == 0:
@@ -243,7 +246,7 @@ def _seed_product(indptr, indices, data, seed, coef, P, AP, T, U, nt):
 
 
 # (error_model: x / 0 is ±inf or NaN, as in NumpySeed: ζ of a finished shift)
-@njit(cache=True, error_model="numpy", fastmath={"contract"})
+@njit(cache=True, error_model="numpy", fastmath=FUSED)
 def run(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, delta, zeta, zeta_prev, rho, alpha_prev, beta_prev,
         tol2, active, live, iterations, ra, rb, rz, sa, sb, srho, state, maxiter, nt):
     """The first pass of ``NumpySeed.first_pass`` until a block boundary, a finished shift, the end,
@@ -333,7 +336,7 @@ def run(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, delta, zeta, zeta
     return CAPPED
 
 
-@njit(cache=True, fastmath={"contract"})
+@njit(cache=True, fastmath=FUSED)
 def replay(indptr, indices, data, seed, coef, P, AP, T, U, R, Rb, sa, sb, t0, t1, nt):
     """The residuals r_t0 … r_{t1−1} into ``Rb[:, 0 … t1−t0−1]`` from R = r_t0, P = p_t0 (the state
     saved after iteration t0) with the recorded α and β: the first pass's arithmetic, so the same bits."""

@@ -254,9 +254,10 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
     if full:
         C = member_coefficients(rec.ra, rec.rb, rec.rz, m, stop)
         Cp = {j: np.ascontiguousarray(C[j][inv]) for j in full}
+    factored = not full                                 # (the receiver may then form the rows itself)
     widths = [None if f is None else f[0].shape[1] for f in factors]
-    W, zbuf = factor_memory(n, widths, emit if poly is not None and all(f is not None for f in factors) else None,
-                            n * max((w for w in widths if w is not None), default=0) if poly is not None else 0)
+    extra = n * max((w for w in widths if w is not None), default=0) if poly is not None else 0
+    W, zbuf = factor_memory(n, widths, emit if poly is not None and factored else None, extra)  # (+ powers' scratch)
     nblocks = -(-m // cap) if m else 0
     for b in range(nblocks):
         t0, t1 = b * cap, min(m, (b + 1) * cap)
@@ -287,7 +288,7 @@ def fold(seed_cg, rec: Records, m: int, stop: np.ndarray, inv: np.ndarray, rtol:
         if scale is not None:
             P *= scale[:, None]
         W[j] = (P if take is None else P[take],)
-    if all(f is not None for f in factors) and hasattr(emit, "factors"):
+    if factored and hasattr(emit, "factors"):
         emit.factors(lefts, W)                          # the receiver forms the rows itself
         if hasattr(emit, "spare"):
             emit.spare(spare)                           # (memory in use no longer, its pages touched)

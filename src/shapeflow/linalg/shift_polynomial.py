@@ -186,4 +186,4 @@ class SeedPolynomial:
             res = kern.shifted_powers(self.A, self.seed, W, d, mem, take, scale)
             Ws[j] = (wide,) if all(res[i] is mem[i] for i in range(d + 1)) else tuple(res)
             lefts[j] = np.ascontiguousarray(np.concatenate([pis[:, i:i + 1] * lefts[j]
-                                                            for i in range(self.degree + 1)], axis=1))
+                                                            for i in range(d + 1)], axis=1))
